@@ -1,0 +1,166 @@
+//! Axis-aligned box, e.g. the finite checkerboard slab of Whitted's image.
+
+use super::{Crossings, ShapeHit, SurfacePoint};
+use crate::math::{Aabb, Ray, Vec3, gamma};
+use glam::Vec2;
+
+/// A solid axis-aligned box. Intersected with the slab test; the hit face is
+/// known from the axis whose plane gave `t_enter` (or `t_exit` from inside).
+///
+/// Scene file: `{ shape = "box", min = [x, y, z], max = [x, y, z] }`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cuboid {
+    pub bounds: Aabb,
+}
+
+/// `prim` encodes the face: the axis (0, 1, 2), plus 3 when the ray left the
+/// box through it (origin inside).
+const EXIT: u32 = 3;
+
+impl Cuboid {
+    pub fn new(min: Vec3, max: Vec3) -> Self {
+        Cuboid {
+            bounds: Aabb::new(min, max),
+        }
+    }
+
+    /// The entry face if `t_enter ∈ [t_min, t_max)`, else the exit face if
+    /// `t_exit` is (the origin is inside the box).
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<ShapeHit> {
+        let s = self.bounds.slab(ray.o, ray.inv_d())?;
+        if ray.contains(s.t_enter) {
+            Some(ShapeHit {
+                t: s.t_enter,
+                prim: s.axis_enter as u32,
+            })
+        } else if ray.contains(s.t_exit) {
+            Some(ShapeHit {
+                t: s.t_exit,
+                prim: EXIT + s.axis_exit as u32,
+            })
+        } else {
+            None
+        }
+    }
+
+    /// The coordinate along the face's axis is snapped onto the face's plane,
+    /// so the point lies exactly on the box; `uv` are the two other world
+    /// coordinates (x and z on the top face).
+    pub fn surface(&self, ray: &Ray, hit: &ShapeHit) -> SurfacePoint {
+        let axis = (hit.prim % EXIT) as usize;
+        let d_axis = ray.d[axis];
+        // Entering, the face looks against the ray; leaving, along it.
+        let outward_positive = if hit.prim >= EXIT {
+            d_axis > 0.0
+        } else {
+            d_axis < 0.0
+        };
+        let mut p = ray.at(hit.t);
+        let mut n = Vec3::ZERO;
+        if outward_positive {
+            p[axis] = self.bounds.max[axis];
+            n[axis] = 1.0;
+        } else {
+            p[axis] = self.bounds.min[axis];
+            n[axis] = -1.0;
+        }
+        let p = p.clamp(self.bounds.min, self.bounds.max);
+        let uv = match axis {
+            0 => Vec2::new(p.z, p.y),
+            1 => Vec2::new(p.x, p.z),
+            _ => Vec2::new(p.x, p.y),
+        };
+        SurfacePoint {
+            p,
+            p_err: gamma(5) * p.abs(),
+            n,
+            uv,
+        }
+    }
+
+    pub fn crossings(&self, ray: &Ray) -> Crossings {
+        let mut out = Crossings::default();
+        let Some(s) = self.bounds.slab(ray.o, ray.inv_d()) else {
+            return out;
+        };
+        let d_len = ray.d.length();
+        if ray.contains(s.t_enter) {
+            out.push(ray.d[s.axis_enter as usize] / d_len);
+        }
+        if ray.contains(s.t_exit) {
+            out.push(ray.d[s.axis_exit as usize] / d_len);
+        }
+        let inside = s.t_exit.min(ray.t_max) - s.t_enter.max(ray.t_min);
+        out.inside_length = inside.max(0.0) * d_len;
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn slab() -> Cuboid {
+        Cuboid::new(Vec3::new(-4.0, -0.02, -4.0), Vec3::new(4.0, 0.0, 12.0))
+    }
+
+    #[test]
+    fn top_face_hit_from_above() {
+        let r = Ray::new(Vec3::new(0.5, 2.0, 0.0), Vec3::new(0.0, -1.0, 1.0));
+        let b = slab();
+        let h = b.intersect(&r).unwrap();
+        assert_eq!(h.t, 2.0);
+        let s = b.surface(&r, &h);
+        assert_eq!(s.n, Vec3::Y);
+        assert_eq!(s.p, Vec3::new(0.5, 0.0, 2.0));
+        assert_eq!(s.uv, Vec2::new(0.5, 2.0));
+    }
+
+    #[test]
+    fn side_face_hit() {
+        let r = Ray::new(Vec3::new(10.0, -0.01, 0.0), -Vec3::X);
+        let b = slab();
+        let h = b.intersect(&r).unwrap();
+        assert_eq!(h.t, 6.0);
+        assert_eq!(b.surface(&r, &h).n, Vec3::X);
+    }
+
+    #[test]
+    fn from_inside_hits_exit_face_with_outward_normal() {
+        let b = Cuboid::new(Vec3::splat(-1.0), Vec3::splat(1.0));
+        let r = Ray::new(Vec3::ZERO, -Vec3::Z);
+        let h = b.intersect(&r).unwrap();
+        assert_eq!(h.t, 1.0);
+        let s = b.surface(&r, &h);
+        assert_eq!(s.n, -Vec3::Z);
+        assert_eq!(s.p, Vec3::new(0.0, 0.0, -1.0));
+    }
+
+    #[test]
+    fn ray_past_the_edge_misses() {
+        let r = Ray::new(Vec3::new(4.5, 1.0, 0.0), -Vec3::Y);
+        assert!(slab().intersect(&r).is_none());
+    }
+
+    #[test]
+    fn reflected_ray_leaves_the_top_face() {
+        let b = slab();
+        let r = Ray::new(Vec3::new(0.3, 2.0, -3.0), Vec3::new(0.1, -1.0, 1.3));
+        let h = b.intersect(&r).unwrap();
+        let s = b.surface(&r, &h);
+        let refl = r.d - 2.0 * r.d.dot(s.n) * s.n;
+        assert!(b.intersect(&Ray::spawn(s.p, s.p_err, s.n, refl)).is_none());
+        // A shadow ray to a light above as well.
+        let sh = Ray::spawn_to(s.p, s.p_err, s.n, Vec3::new(-4.0, 9.0, -7.0));
+        assert!(b.intersect(&sh).is_none());
+    }
+
+    #[test]
+    fn crossings_through_the_box() {
+        let b = Cuboid::new(Vec3::splat(-1.0), Vec3::splat(1.0));
+        let r = Ray::new(Vec3::new(0.0, 0.0, -3.0), Vec3::Z);
+        let c = b.crossings(&r);
+        assert_eq!((c.count, c.inside_length), (2, 2.0));
+    }
+}

@@ -1,0 +1,21 @@
+//! glint: a Whitted-style ray tracer.
+//!
+//! Load a scene ([`scene::load_scene_file`], or the built-in
+//! [`scene::BUILTIN_WHITTED`] through [`scene::parse_scene`]), render it
+//! ([`render::render`]) into an [`render::Image`] with [`render::RenderStats`],
+//! and write it ([`render::write_image`]).
+//!
+//! ```
+//! use glint::{render, scene, settings::RenderSettings};
+//! let file = scene::parse_scene(scene::BUILTIN_WHITTED, "whitted.toml".as_ref()).unwrap();
+//! let settings = RenderSettings { width: 32, height: 24, spp: 1, ..file.settings };
+//! let (image, stats) = render::render(&file.scene, &settings, &|_| {}).unwrap();
+//! assert_eq!(image.pixels.len(), 32 * 24);
+//! assert_eq!(stats.rays.camera, 32 * 24);
+//! ```
+
+pub mod geometry;
+pub mod math;
+pub mod render;
+pub mod scene;
+pub mod settings;

@@ -1,0 +1,244 @@
+//! The `glint` command line: argument parsing, progress, writing files.
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use glint::render::{self, ImageFormat, RenderStats};
+use glint::scene::{self, SceneFile};
+use glint::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// glint: a Whitted-style ray tracer.
+///
+/// With no arguments, renders the built-in Whitted scene to `whitted.png`.
+#[derive(Parser, Debug)]
+#[command(version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Render a scene file (or the built-in Whitted scene) to PNG or EXR.
+    Render(RenderArgs),
+}
+
+#[derive(Args, Debug, Default)]
+struct RenderArgs {
+    /// Scene file (TOML, see docs/scene-format.md); the built-in Whitted scene if omitted.
+    scene: Option<PathBuf>,
+    /// Output image, .png (sRGB, 8-bit) or .exr (linear, 32-bit float).
+    /// Default: the scene file's name with .png, in the current folder.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Image width in pixels (overrides the scene file).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    width: Option<u32>,
+    /// Image height in pixels.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    height: Option<u32>,
+    /// Samples per pixel (1: through pixel centres; more: stratified, jittered).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_SPP as i64))]
+    spp: Option<u32>,
+    /// Maximum recursion depth (Whitted).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=MAX_DEPTH as i64))]
+    max_depth: Option<u32>,
+    /// Rays whose weight falls below this are not traced (Whitted).
+    #[arg(long, value_parser = parse_weight)]
+    min_weight: Option<f32>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    threads: Option<u32>,
+    /// Light transport algorithm.
+    #[arg(long, value_enum)]
+    integrator: Option<IntegratorArg>,
+    /// Also write the statistics as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    stats_json: Option<PathBuf>,
+    /// Print nothing but errors.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum IntegratorArg {
+    Raycast,
+    Whitted,
+}
+
+fn parse_weight(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(x) if (0.0..=1.0).contains(&x) => Ok(x),
+        _ => Err(format!("expected a number from 0 to 1, found `{s}`")),
+    }
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let args = match cli.command {
+        Some(Command::Render(args)) => args,
+        None => RenderArgs::default(),
+    };
+    if let Err(e) = run_render(args) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run_render(args: RenderArgs) -> Result<()> {
+    let output = match &args.output {
+        Some(o) => o.clone(),
+        None => {
+            let stem = args
+                .scene
+                .as_deref()
+                .and_then(Path::file_stem)
+                .map_or("whitted".into(), |s| s.to_string_lossy().into_owned());
+            PathBuf::from(format!("{stem}.png"))
+        }
+    };
+    if ImageFormat::from_path(&output).is_none() {
+        bail!(
+            "cannot write `{}`: unsupported file extension (use .png or .exr)",
+            output.display()
+        );
+    }
+
+    let load_start = Instant::now();
+    let (
+        SceneFile {
+            scene,
+            mut settings,
+        },
+        scene_name,
+    ) = match &args.scene {
+        Some(path) => (scene::load_scene_file(path)?, path.display().to_string()),
+        None => (
+            scene::parse_scene(
+                scene::BUILTIN_WHITTED,
+                Path::new("scenes/whitted.toml (built in)"),
+            )?,
+            "the built-in Whitted scene".to_string(),
+        ),
+    };
+    let seconds_load = load_start.elapsed().as_secs_f64();
+
+    if let Some(w) = args.width {
+        settings.width = w;
+    }
+    if let Some(h) = args.height {
+        settings.height = h;
+    }
+    if let Some(s) = args.spp {
+        settings.spp = s;
+    }
+    if let Some(d) = args.max_depth {
+        settings.max_depth = d;
+    }
+    if let Some(w) = args.min_weight {
+        settings.min_weight = w;
+    }
+    if let Some(t) = args.threads {
+        settings.threads = t as usize;
+    }
+    if let Some(i) = args.integrator {
+        settings.integrator = match i {
+            IntegratorArg::Raycast => IntegratorKind::Raycast,
+            IntegratorArg::Whitted => IntegratorKind::Whitted,
+        };
+    }
+
+    let pixels = settings.width as u64 * settings.height as u64;
+    let bar = if !args.quiet && std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new(pixels);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} rendering [{bar:40}] {percent:>3}%  {elapsed_precise} elapsed, ETA {eta}",
+            )
+            .expect("the template is a valid constant")
+            .progress_chars("=> "),
+        );
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let (image, mut stats) = render::render(&scene, &settings, &|n| bar.inc(n))?;
+    bar.finish_and_clear();
+    stats.seconds_load = seconds_load;
+
+    render::write_image(&output, &image)?;
+    if let Some(path) = &args.stats_json {
+        write_stats_json(path, &stats)?;
+    }
+    if !args.quiet {
+        eprintln!("{}", summary(&scene_name, &stats));
+        eprintln!("wrote {}", output.display());
+    }
+    Ok(())
+}
+
+/// The statistics as JSON, written atomically like the image.
+fn write_stats_json(path: &Path, stats: &RenderStats) -> Result<()> {
+    let json = serde_json::to_string_pretty(stats).context("serialising statistics")?;
+    let tmp = path.with_file_name(format!(
+        ".{}.{}.tmp",
+        path.file_name()
+            .map(|n| n.to_string_lossy())
+            .unwrap_or_default(),
+        std::process::id()
+    ));
+    std::fs::write(&tmp, json + "\n")
+        .and_then(|_| std::fs::rename(&tmp, path))
+        .inspect_err(|_| {
+            let _ = std::fs::remove_file(&tmp);
+        })
+        .with_context(|| format!("cannot write statistics to `{}`", path.display()))
+}
+
+fn summary(scene_name: &str, s: &RenderStats) -> String {
+    let nan = if s.nan_pixels > 0 {
+        format!(
+            " {} pixels had NaN or infinite samples ({} samples, rendered as black).",
+            group(s.nan_pixels),
+            group(s.bad_samples)
+        )
+    } else {
+        " No NaN or infinite samples.".to_string()
+    };
+    format!(
+        "Rendered {scene_name} at {}×{}, {} spp, {} integrator (max depth {}), {} threads. \
+         Load {:.1} ms, render {:.1} ms. Rays: {} camera, {} shadow, {} reflection, {} refraction \
+         ({} in all, {:.1} M rays/s). {} intersection tests.{nan}",
+        s.width,
+        s.height,
+        s.spp,
+        s.integrator,
+        s.max_depth,
+        s.threads,
+        s.seconds_load * 1e3,
+        s.seconds_render * 1e3,
+        group(s.rays.camera),
+        group(s.rays.shadow),
+        group(s.rays.reflection),
+        group(s.rays.refraction),
+        group(s.rays_total),
+        s.rays_per_second / 1e6,
+        group(s.intersection_tests),
+    )
+}
+
+/// `1234567` → `1,234,567`.
+fn group(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}

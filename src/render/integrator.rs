@@ -1,0 +1,192 @@
+//! Integrators: ray casting (Appel 1968) and recursive ray tracing
+//! (Whitted 1979).
+
+use super::stats::RayCounts;
+use crate::math::{Color, Ray, Vec3};
+use crate::scene::{
+    Light, MaterialKind, Scene, SurfaceInteraction, TraceCounters, fresnel_dielectric, reflect,
+    refract,
+};
+
+/// Work counters an integrator adds to while tracing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Counters {
+    pub rays: RayCounts,
+    pub trace: TraceCounters,
+}
+
+/// Computes the radiance arriving along a camera ray.
+pub trait Integrator: Sync {
+    fn radiance(&self, scene: &Scene, ray: &Ray, counters: &mut Counters) -> Color;
+}
+
+/// Appel's ray casting: the first hit along the eye ray, shaded by the local
+/// terms of its material with a shadow ray to each light. No secondary rays.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Raycast;
+
+impl Integrator for Raycast {
+    fn radiance(&self, scene: &Scene, ray: &Ray, counters: &mut Counters) -> Color {
+        let Some(hit) = scene.intersect(ray, &mut counters.trace) else {
+            return scene.background;
+        };
+        let si = scene.surface(ray, &hit);
+        let wo = -ray.d.normalize();
+        let n_facing = face_forward(si.n, wo);
+        local_shading(scene, &si, wo, n_facing, counters)
+    }
+}
+
+/// Whitted's recursive ray tracing.
+///
+/// At each hit: the local terms (as [`Raycast`]), plus for a mirror a reflected
+/// ray weighted by its reflectance, and for a dielectric a reflected and a
+/// refracted ray weighted by the Fresnel reflectance `R` and transmittance `T`
+/// (total internal reflection: `R = 1`). Recursion ends at diffuse surfaces
+/// (they spawn nothing), when a ray leaves the scene (it sees the background),
+/// when a ray's weight (the product of the factors on its way to the pixel,
+/// largest channel) would fall below `min_weight`, or at `max_depth` bounces.
+/// Lights are points or directions and cannot be hit by rays.
+#[derive(Clone, Copy, Debug)]
+pub struct Whitted {
+    pub max_depth: u32,
+    pub min_weight: f32,
+}
+
+impl Integrator for Whitted {
+    fn radiance(&self, scene: &Scene, ray: &Ray, counters: &mut Counters) -> Color {
+        self.trace(scene, ray, 0, 1.0, counters)
+    }
+}
+
+impl Whitted {
+    fn trace(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        depth: u32,
+        weight: f32,
+        counters: &mut Counters,
+    ) -> Color {
+        let Some(hit) = scene.intersect(ray, &mut counters.trace) else {
+            return scene.background;
+        };
+        let si = scene.surface(ray, &hit);
+        let d = ray.d.normalize();
+        let wo = -d;
+        let front = d.dot(si.n) < 0.0;
+        let n_facing = if front { si.n } else { -si.n };
+        let mut l = local_shading(scene, &si, wo, n_facing, counters);
+        let material = &scene.materials[si.material as usize];
+
+        if depth < self.max_depth {
+            match material.kind {
+                MaterialKind::Diffuse => {}
+                MaterialKind::Mirror { reflectance } => {
+                    let w = weight * reflectance.max_element();
+                    if w >= self.min_weight {
+                        counters.rays.reflection += 1;
+                        let r = Ray::spawn(si.p, si.p_err, si.n, reflect(d, n_facing));
+                        l += reflectance * self.trace(scene, &r, depth + 1, w, counters);
+                    }
+                }
+                MaterialKind::Dielectric { ior, .. } => {
+                    let (eta_i, eta_t) = if front { (1.0, ior) } else { (ior, 1.0) };
+                    let f = fresnel_dielectric(wo.dot(n_facing), eta_i, eta_t);
+                    let w = weight * f.reflectance;
+                    if w >= self.min_weight {
+                        counters.rays.reflection += 1;
+                        let r = Ray::spawn(si.p, si.p_err, si.n, reflect(d, n_facing));
+                        l += f.reflectance * self.trace(scene, &r, depth + 1, w, counters);
+                    }
+                    let w = weight * f.transmittance;
+                    if w >= self.min_weight
+                        && let Some(t) = refract(d, n_facing, eta_i / eta_t)
+                    {
+                        counters.rays.refraction += 1;
+                        let r = Ray::spawn(si.p, si.p_err, si.n, t);
+                        l += f.transmittance * self.trace(scene, &r, depth + 1, w, counters);
+                    }
+                }
+            }
+        }
+
+        // A ray that reached the back face of a dielectric travelled inside it.
+        if !front
+            && let MaterialKind::Dielectric { absorption, .. } = material.kind
+            && absorption != Color::ZERO
+        {
+            l *= (-absorption * (hit.t * ray.d.length())).exp();
+        }
+        l
+    }
+}
+
+/// `n` flipped, if needed, to the side of `w`.
+#[inline]
+fn face_forward(n: Vec3, w: Vec3) -> Vec3 {
+    if n.dot(w) < 0.0 { -n } else { n }
+}
+
+/// The local terms of Whitted's model at a hit seen from direction `wo`
+/// (unit, towards the viewer), with `n_facing` the unit normal on `wo`'s side:
+/// `k_a·C·A + Σ_lights V·E·(k_d·C·(N·L) + k_s·(N·H)^n)` over the lights with
+/// `N·L > 0`, where `V` is the shadow ray's transmittance (1 unblocked, 0
+/// blocked by an opaque object, in between through glass), `E` the light's
+/// irradiance at the point (`I/r²` for a point light), and `H = (L + wo)/|L + wo|`
+/// (Blinn 1977).
+#[inline]
+fn local_shading(
+    scene: &Scene,
+    si: &SurfaceInteraction,
+    wo: Vec3,
+    n_facing: Vec3,
+    counters: &mut Counters,
+) -> Color {
+    let m = &scene.materials[si.material as usize];
+    let albedo = m.texture.eval(si.p, si.uv);
+    let mut l = m.ambient * albedo * scene.ambient;
+    if m.diffuse == 0.0 && m.specular == 0.0 {
+        return l;
+    }
+    for light in &scene.lights {
+        let (wi, irradiance, shadow_ray) = match *light {
+            Light::Point {
+                position,
+                intensity,
+            } => {
+                let to_light = position - si.p;
+                let dist2 = to_light.length_squared();
+                (
+                    to_light / dist2.sqrt(),
+                    intensity / dist2,
+                    Ray::spawn_to(si.p, si.p_err, si.n, position),
+                )
+            }
+            Light::Directional {
+                direction,
+                irradiance,
+            } => (
+                -direction,
+                irradiance,
+                Ray::spawn(si.p, si.p_err, si.n, -direction),
+            ),
+        };
+        let cos = n_facing.dot(wi);
+        if cos <= 0.0 {
+            continue;
+        }
+        counters.rays.shadow += 1;
+        let visibility = scene.transmittance(&shadow_ray, &mut counters.trace);
+        if visibility == Color::ZERO {
+            continue;
+        }
+        let mut reflected = m.diffuse * cos * albedo;
+        if m.specular > 0.0 {
+            let h = (wi + wo).normalize_or_zero();
+            reflected += m.specular * n_facing.dot(h).max(0.0).powf(m.shininess);
+        }
+        l += visibility * irradiance * reflected;
+    }
+    l
+}

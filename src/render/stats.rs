@@ -1,0 +1,63 @@
+//! Render statistics, shown after a render and written by `--stats-json`.
+
+use serde::Serialize;
+
+/// Rays traced, by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct RayCounts {
+    pub camera: u64,
+    pub shadow: u64,
+    pub reflection: u64,
+    pub refraction: u64,
+}
+
+impl RayCounts {
+    pub fn total(&self) -> u64 {
+        self.camera + self.shadow + self.reflection + self.refraction
+    }
+}
+
+/// Per-tile work counters, summed into [`RenderStats`] in tile order.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TileCounters {
+    pub rays: RayCounts,
+    pub intersection_tests: u64,
+    /// Samples whose radiance was NaN or infinite (replaced by black).
+    pub bad_samples: u64,
+    /// Pixels with at least one such sample.
+    pub nan_pixels: u64,
+}
+
+impl std::ops::AddAssign for TileCounters {
+    fn add_assign(&mut self, o: Self) {
+        self.rays.camera += o.rays.camera;
+        self.rays.shadow += o.rays.shadow;
+        self.rays.reflection += o.rays.reflection;
+        self.rays.refraction += o.rays.refraction;
+        self.intersection_tests += o.intersection_tests;
+        self.bad_samples += o.bad_samples;
+        self.nan_pixels += o.nan_pixels;
+    }
+}
+
+/// What a render did and how long it took.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RenderStats {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub integrator: String,
+    pub max_depth: u32,
+    pub threads: usize,
+    /// Time to read and build the scene (filled in by the caller that loaded it).
+    pub seconds_load: f64,
+    pub seconds_render: f64,
+    pub rays: RayCounts,
+    pub rays_total: u64,
+    pub rays_per_second: f64,
+    /// Ray–shape intersection tests, all ray kinds.
+    pub intersection_tests: u64,
+    /// Pixels that had a NaN or infinite sample (each such sample counts as black).
+    pub nan_pixels: u64,
+    pub bad_samples: u64,
+}

@@ -1,0 +1,72 @@
+//! Pinhole camera.
+
+use crate::math::{Ray, Vec3};
+
+/// A pinhole camera at `position` looking at `look_at`, with vertical field of
+/// view `fov_y_deg`. Right-handed: with `up = +y` and the camera looking down
+/// `−z`, image right is `+x`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    pub position: Vec3,
+    forward: Vec3,
+    right: Vec3,
+    up: Vec3,
+    tan_half_fov: f32,
+}
+
+impl Camera {
+    /// Returns `None` when `look_at == position`, `up` is parallel to the view
+    /// direction, or the field of view is not in (0°, 180°).
+    pub fn try_new(position: Vec3, look_at: Vec3, up: Vec3, fov_y_deg: f32) -> Option<Self> {
+        let forward = (look_at - position).try_normalize()?;
+        let right = forward.cross(up).try_normalize()?;
+        let up = right.cross(forward);
+        if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
+            return None;
+        }
+        Some(Camera {
+            position,
+            forward,
+            right,
+            up,
+            tan_half_fov: (fov_y_deg.to_radians() * 0.5).tan(),
+        })
+    }
+
+    /// The eye ray through the film point `(x, y)`, in pixels from the top-left
+    /// corner of a `width × height` image (pixel `(i, j)` covers
+    /// `[i, i+1) × [j, j+1)`; its centre is `(i + ½, j + ½)`). Any aspect ratio:
+    /// the vertical field of view is fixed and the horizontal one follows.
+    #[inline]
+    pub fn ray(&self, x: f32, y: f32, width: u32, height: u32) -> Ray {
+        let aspect = width as f32 / height as f32;
+        let sx = (2.0 * x / width as f32 - 1.0) * self.tan_half_fov * aspect;
+        let sy = (1.0 - 2.0 * y / height as f32) * self.tan_half_fov;
+        let d = self.forward + self.right * sx + self.up * sy;
+        Ray::new(self.position, d.normalize())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn centre_pixel_looks_at_target_and_corners_span_the_fov() {
+        let c = Camera::try_new(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 90.0).unwrap();
+        let r = c.ray(50.0, 25.0, 100, 50);
+        assert!((r.d - -Vec3::Z).length() < 1e-6);
+        // Top edge at 45° above the axis, right edge at atan(2) (aspect 2).
+        let top = c.ray(50.0, 0.0, 100, 50).d;
+        assert!((top.y / -top.z - 1.0).abs() < 1e-6);
+        let right = c.ray(100.0, 25.0, 100, 50).d;
+        assert!((right.x / -right.z - 2.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn degenerate_cameras_are_rejected() {
+        assert!(Camera::try_new(Vec3::ONE, Vec3::ONE, Vec3::Y, 40.0).is_none());
+        assert!(Camera::try_new(Vec3::ZERO, Vec3::Y, Vec3::Y, 40.0).is_none());
+        assert!(Camera::try_new(Vec3::ZERO, Vec3::Z, Vec3::Y, 180.0).is_none());
+    }
+}

@@ -1,0 +1,624 @@
+//! The TOML scene file (documented key by key in `docs/scene-format.md`).
+//!
+//! The file is parsed into toml's spanned document tree, then read table by
+//! table. Every key is looked up by name, so every error can point at the
+//! exact place: an unknown key at the key, a wrong type or value at the value,
+//! a missing key at the table that lacks it.
+//!
+//! ```toml
+//! [camera]
+//! position = [0, 2.2, -7]
+//! look_at = [0, 1, 0]
+//!
+//! [materials]
+//! glass = { type = "dielectric", ior = 1.5 }
+//!
+//! [[light]]
+//! type = "point"
+//! position = [4, 9, -7]
+//! intensity = 130
+//!
+//! [[object]]
+//! shape = "sphere"
+//! center = [0, 1, 0]
+//! radius = 1
+//! material = "glass"
+//! ```
+
+use super::{Camera, CheckerMode, Light, Material, MaterialKind, Object, Scene, Texture};
+use crate::geometry::{Cuboid, Plane, Shape, Sphere};
+use crate::math::{Color, Vec3};
+use crate::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP, RenderSettings};
+use std::collections::HashMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+use toml::de::{DeTable, DeValue};
+
+/// The built-in scene: Whitted's spheres and checkerboard, as shipped in
+/// `scenes/whitted.toml`.
+pub const BUILTIN_WHITTED: &str = include_str!("../../scenes/whitted.toml");
+
+/// A scene file's contents: the scene and its `[render]` settings.
+#[derive(Clone, Debug)]
+pub struct SceneFile {
+    pub scene: Scene,
+    pub settings: RenderSettings,
+}
+
+/// Why a scene could not be loaded. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("cannot read scene file `{}`: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}:{line}:{column}: {message}", path.display())]
+    Parse {
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column, in characters.
+        column: usize,
+        message: String,
+    },
+}
+
+/// Reads and parses the scene file at `path`.
+pub fn load_scene_file(path: &Path) -> std::result::Result<SceneFile, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_scene(&text, path)
+}
+
+/// Parses scene-file text; `path` is used in error messages only.
+pub fn parse_scene(text: &str, path: &Path) -> std::result::Result<SceneFile, SceneError> {
+    let ctx = Ctx { path, text };
+    let doc = DeTable::parse(text).map_err(|e| {
+        let span = e.span().unwrap_or(0..0);
+        ctx.error(span, format!("invalid TOML: {}", e.message().trim()))
+    })?;
+    read_document(&ctx, doc.get_ref(), doc.span())
+}
+
+type Value<'i> = Spanned<DeValue<'i>>;
+type Result<T> = std::result::Result<T, SceneError>;
+
+struct Ctx<'a> {
+    path: &'a Path,
+    text: &'a str,
+}
+
+impl Ctx<'_> {
+    /// An error located at the start of the byte range `span`.
+    fn error(&self, span: Range<usize>, message: impl Into<String>) -> SceneError {
+        let offset = span.start.min(self.text.len());
+        let before = &self.text[..offset];
+        let line = before.matches('\n').count() + 1;
+        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+        SceneError::Parse {
+            path: self.path.to_path_buf(),
+            line,
+            column: before[line_start..].chars().count() + 1,
+            message: message.into(),
+        }
+    }
+
+    fn number(&self, v: &Value) -> Result<f32> {
+        let x = match v.get_ref() {
+            DeValue::Integer(i) => parse_integer(i.as_str(), i.radix()).map(|i| i as f64),
+            DeValue::Float(f) => f.as_str().replace('_', "").parse::<f64>().ok(),
+            other => {
+                return Err(self.error(
+                    v.span(),
+                    format!("expected a number, found {}", other.type_str()),
+                ));
+            }
+        };
+        match x.map(|x| x as f32) {
+            Some(x) if x.is_finite() => Ok(x),
+            _ => Err(self.error(v.span(), "expected a finite number")),
+        }
+    }
+
+    fn integer(&self, v: &Value) -> Result<i64> {
+        match v.get_ref() {
+            DeValue::Integer(i) => parse_integer(i.as_str(), i.radix())
+                .ok_or_else(|| self.error(v.span(), "integer out of range")),
+            other => Err(self.error(
+                v.span(),
+                format!("expected an integer, found {}", other.type_str()),
+            )),
+        }
+    }
+
+    fn string<'v>(&self, v: &'v Value) -> Result<&'v str> {
+        match v.get_ref() {
+            DeValue::String(s) => Ok(s),
+            other => Err(self.error(
+                v.span(),
+                format!("expected a string, found {}", other.type_str()),
+            )),
+        }
+    }
+
+    fn array<'v, 'i>(&self, v: &'v Value<'i>, what: &str) -> Result<&'v [Value<'i>]> {
+        match v.get_ref() {
+            DeValue::Array(a) => Ok(a),
+            other => Err(self.error(
+                v.span(),
+                format!("expected {what}, found {}", other.type_str()),
+            )),
+        }
+    }
+
+    fn vec3(&self, v: &Value) -> Result<Vec3> {
+        const WHAT: &str = "an array of 3 numbers [x, y, z]";
+        let items = self.array(v, WHAT)?;
+        if items.len() != 3 {
+            return Err(self.error(
+                v.span(),
+                format!("expected {WHAT}, found {} elements", items.len()),
+            ));
+        }
+        Ok(Vec3::new(
+            self.number(&items[0])?,
+            self.number(&items[1])?,
+            self.number(&items[2])?,
+        ))
+    }
+
+    /// A colour: `[r, g, b]`, or one number for grey; components ≥ 0.
+    fn color(&self, v: &Value) -> Result<Color> {
+        let c = match v.get_ref() {
+            DeValue::Array(_) => self.vec3(v)?,
+            DeValue::Integer(_) | DeValue::Float(_) => Color::splat(self.number(v)?),
+            other => {
+                return Err(self.error(
+                    v.span(),
+                    format!(
+                        "expected a colour [r, g, b] or a number, found {}",
+                        other.type_str()
+                    ),
+                ));
+            }
+        };
+        if c.min_element() < 0.0 {
+            return Err(self.error(v.span(), "expected colour components ≥ 0"));
+        }
+        Ok(c)
+    }
+}
+
+fn parse_integer(digits: &str, radix: u32) -> Option<i64> {
+    let digits = digits.replace('_', "");
+    let digits = match radix {
+        10 => digits.as_str(),
+        _ => &digits[2..],
+    };
+    i64::from_str_radix(digits, radix).ok()
+}
+
+/// Reads the keys of one table, remembering which were asked for, so that
+/// [`Fields::finish`] can reject the others as unknown.
+struct Fields<'c, 'i> {
+    ctx: &'c Ctx<'c>,
+    table: &'c DeTable<'i>,
+    span: Range<usize>,
+    /// How the table is named in messages, e.g. "[camera]" or "object 2 (sphere)".
+    what: String,
+    known: Vec<&'static str>,
+}
+
+impl<'c, 'i> Fields<'c, 'i> {
+    fn new(ctx: &'c Ctx<'c>, table: &'c DeTable<'i>, span: Range<usize>, what: String) -> Self {
+        Fields {
+            ctx,
+            table,
+            span,
+            what,
+            known: Vec::new(),
+        }
+    }
+
+    /// A table value, or an error naming `what` it should have been.
+    fn of(ctx: &'c Ctx<'c>, v: &'c Value<'i>, what: String) -> Result<Self> {
+        match v.get_ref() {
+            DeValue::Table(t) => Ok(Fields::new(ctx, t, v.span(), what)),
+            other => Err(ctx.error(
+                v.span(),
+                format!("expected a table for {what}, found {}", other.type_str()),
+            )),
+        }
+    }
+
+    fn get(&mut self, key: &'static str) -> Option<&'c Value<'i>> {
+        self.known.push(key);
+        self.table.get(key)
+    }
+
+    fn require(&mut self, key: &'static str) -> Result<&'c Value<'i>> {
+        self.get(key).ok_or_else(|| {
+            self.ctx.error(
+                self.span.clone(),
+                format!("missing required key `{key}` in {}", self.what),
+            )
+        })
+    }
+
+    fn opt<T>(
+        &mut self,
+        key: &'static str,
+        read: impl FnOnce(&'c Ctx<'c>, &'c Value<'i>) -> Result<T>,
+    ) -> Result<Option<T>> {
+        match self.get(key) {
+            Some(v) => read(self.ctx, v).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    fn req<T>(
+        &mut self,
+        key: &'static str,
+        read: impl FnOnce(&'c Ctx<'c>, &'c Value<'i>) -> Result<T>,
+    ) -> Result<T> {
+        let v = self.require(key)?;
+        read(self.ctx, v)
+    }
+
+    /// A number that must satisfy `ok`; `expected` says what was expected.
+    fn checked(
+        &mut self,
+        key: &'static str,
+        default: Option<f32>,
+        ok: impl Fn(f32) -> bool,
+        expected: &str,
+    ) -> Result<f32> {
+        let v = match (self.get(key), default) {
+            (Some(v), _) => v,
+            (None, Some(d)) => return Ok(d),
+            (None, None) => return self.require(key).map(|_| 0.0),
+        };
+        let x = self.ctx.number(v)?;
+        if !ok(x) {
+            return Err(self.ctx.error(
+                v.span(),
+                format!("expected {expected} for `{key}`, found {x}"),
+            ));
+        }
+        Ok(x)
+    }
+
+    /// An integer in `range`, or `default` if absent.
+    fn int_in(&mut self, key: &'static str, default: u32, range: Range<i64>) -> Result<u32> {
+        let Some(v) = self.get(key) else {
+            return Ok(default);
+        };
+        let x = self.ctx.integer(v)?;
+        if !range.contains(&x) {
+            return Err(self.ctx.error(
+                v.span(),
+                format!(
+                    "expected an integer from {} to {} for `{key}`, found {x}",
+                    range.start,
+                    range.end - 1
+                ),
+            ));
+        }
+        Ok(x as u32)
+    }
+
+    /// One of `names`, as a string.
+    fn choice(&mut self, key: &'static str, names: &[&str]) -> Result<Option<&'c str>> {
+        let Some(v) = self.get(key) else {
+            return Ok(None);
+        };
+        let s = self.ctx.string(v)?;
+        if !names.contains(&s) {
+            return Err(self.ctx.error(
+                v.span(),
+                format!("unknown {key} `{s}`; expected one of: {}", names.join(", ")),
+            ));
+        }
+        Ok(Some(s))
+    }
+
+    /// Rejects any key that was never asked for.
+    fn finish(self) -> Result<()> {
+        for (key, _) in self.table.iter() {
+            if !self.known.contains(&key.get_ref().as_ref()) {
+                let mut known = self.known.clone();
+                known.sort_unstable();
+                known.dedup();
+                return Err(self.ctx.error(
+                    key.span(),
+                    format!(
+                        "unknown key `{}` in {}; expected one of: {}",
+                        key.get_ref(),
+                        self.what,
+                        known.join(", ")
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+fn read_document(ctx: &Ctx, doc: &DeTable, span: Range<usize>) -> Result<SceneFile> {
+    let mut top = Fields::new(ctx, doc, span.start..span.start, "the scene file".into());
+
+    let camera = read_camera(ctx, top.require("camera")?)?;
+
+    let mut settings = RenderSettings::default();
+    let (mut background, mut ambient) = (Color::ZERO, Color::ZERO);
+    if let Some(v) = top.get("render") {
+        let mut f = Fields::of(ctx, v, "[render]".into())?;
+        settings.width = f.int_in("width", settings.width, 1..MAX_IMAGE_SIDE as i64 + 1)?;
+        settings.height = f.int_in("height", settings.height, 1..MAX_IMAGE_SIDE as i64 + 1)?;
+        settings.spp = f.int_in("spp", settings.spp, 1..MAX_SPP as i64 + 1)?;
+        settings.max_depth = f.int_in("max_depth", settings.max_depth, 0..MAX_DEPTH as i64 + 1)?;
+        settings.min_weight = f.checked(
+            "min_weight",
+            Some(settings.min_weight),
+            |x| (0.0..=1.0).contains(&x),
+            "a number from 0 to 1",
+        )?;
+        if let Some(name) = f.choice("integrator", &IntegratorKind::NAMES)? {
+            settings.integrator = IntegratorKind::from_name(name).unwrap_or_default();
+        }
+        background = f.opt("background", Ctx::color)?.unwrap_or(background);
+        ambient = f.opt("ambient", Ctx::color)?.unwrap_or(ambient);
+        f.finish()?;
+    }
+
+    let mut materials = vec![Material::default_diffuse()];
+    let mut material_index = HashMap::new();
+    if let Some(v) = top.get("materials") {
+        let f = Fields::of(ctx, v, "[materials]".into())?;
+        for (name, value) in f.table.iter() {
+            let name = name.get_ref().as_ref();
+            material_index.insert(name.to_string(), materials.len() as u32);
+            materials.push(read_material(ctx, name, value)?);
+        }
+    }
+
+    let mut lights = Vec::new();
+    if let Some(v) = top.get("light") {
+        for (i, item) in ctx
+            .array(v, "an array of [[light]] tables")?
+            .iter()
+            .enumerate()
+        {
+            lights.push(read_light(ctx, item, i + 1)?);
+        }
+    }
+
+    let mut objects = Vec::new();
+    if let Some(v) = top.get("object") {
+        for (i, item) in ctx
+            .array(v, "an array of [[object]] tables")?
+            .iter()
+            .enumerate()
+        {
+            objects.push(read_object(ctx, item, i + 1, &material_index)?);
+        }
+    }
+    top.finish()?;
+
+    Ok(SceneFile {
+        scene: Scene::new(camera, objects, materials, lights, background, ambient),
+        settings,
+    })
+}
+
+fn read_camera(ctx: &Ctx, v: &Value) -> Result<Camera> {
+    let mut f = Fields::of(ctx, v, "[camera]".into())?;
+    let position = f.req("position", Ctx::vec3)?;
+    let look_at = f.req("look_at", Ctx::vec3)?;
+    let up = f.opt("up", Ctx::vec3)?.unwrap_or(Vec3::Y);
+    let fov = f.checked(
+        "fov",
+        Some(40.0),
+        |x| x > 0.0 && x < 180.0,
+        "a vertical field of view in degrees, between 0 and 180",
+    )?;
+    let span = f.span.clone();
+    f.finish()?;
+    Camera::try_new(position, look_at, up, fov).ok_or_else(|| {
+        ctx.error(
+            span,
+            "degenerate [camera]: `look_at` must differ from `position`, and `up` must not be parallel to the view direction",
+        )
+    })
+}
+
+fn read_texture(ctx: &Ctx, v: &Value, what: &str) -> Result<Texture> {
+    let mut f = Fields::of(ctx, v, format!("the texture of {what}"))?;
+    let checker = f.require("checker")?;
+    let pair = ctx.array(checker, "two colours [[r, g, b], [r, g, b]]")?;
+    if pair.len() != 2 {
+        return Err(ctx.error(
+            checker.span(),
+            format!(
+                "expected two colours [[r, g, b], [r, g, b]], found {} elements",
+                pair.len()
+            ),
+        ));
+    }
+    let (even, odd) = (ctx.color(&pair[0])?, ctx.color(&pair[1])?);
+    let scale = f.checked("scale", Some(1.0), |x| x > 0.0, "a positive cell size")?;
+    let mode = match f.choice("mode", &["planar", "solid"])? {
+        Some("solid") => CheckerMode::Solid,
+        _ => CheckerMode::Planar,
+    };
+    f.finish()?;
+    Ok(Texture::Checker {
+        even,
+        odd,
+        scale,
+        mode,
+    })
+}
+
+fn read_material(ctx: &Ctx, name: &str, v: &Value) -> Result<Material> {
+    let what = format!("material `{name}`");
+    let mut f = Fields::of(ctx, v, what.clone())?;
+    let kind = f.require("type")?;
+    let kind_name = ctx.string(kind)?;
+    let is_diffuse = kind_name == "diffuse";
+    let base = if is_diffuse { 1.0 } else { 0.0 };
+    let kind = match kind_name {
+        "diffuse" => MaterialKind::Diffuse,
+        "mirror" => MaterialKind::Mirror {
+            reflectance: f.opt("reflectance", Ctx::color)?.unwrap_or(Color::ONE),
+        },
+        "dielectric" => MaterialKind::Dielectric {
+            ior: f.checked(
+                "ior",
+                Some(1.5),
+                |x| x > 0.0,
+                "a positive index of refraction",
+            )?,
+            absorption: f.opt("absorption", Ctx::color)?.unwrap_or(Color::ZERO),
+        },
+        other => {
+            return Err(ctx.error(
+                kind.span(),
+                format!(
+                    "unknown material type `{other}`; expected one of: diffuse, mirror, dielectric"
+                ),
+            ));
+        }
+    };
+    let color = f.opt("color", Ctx::color)?;
+    let texture = match (color, f.get("texture")) {
+        (Some(_), Some(t)) => {
+            return Err(ctx.error(
+                t.span(),
+                format!("{what} has both `color` and `texture`; give one"),
+            ));
+        }
+        (_, Some(t)) => read_texture(ctx, t, &what)?,
+        (Some(c), None) => Texture::Solid(c),
+        (None, None) => Texture::Solid(if is_diffuse {
+            Color::splat(0.8)
+        } else {
+            Color::ONE
+        }),
+    };
+    let nonneg = |x: f32| x >= 0.0;
+    let material = Material {
+        texture,
+        ambient: f.checked("ambient", Some(base), nonneg, "a number ≥ 0")?,
+        diffuse: f.checked("diffuse", Some(base), nonneg, "a number ≥ 0")?,
+        specular: f.checked("specular", Some(0.0), nonneg, "a number ≥ 0")?,
+        shininess: f.checked("shininess", Some(64.0), |x| x > 0.0, "a positive exponent")?,
+        kind,
+    };
+    f.finish()?;
+    Ok(material)
+}
+
+fn read_light(ctx: &Ctx, v: &Value, index: usize) -> Result<Light> {
+    let mut f = Fields::of(ctx, v, format!("light {index}"))?;
+    let kind = f.require("type")?;
+    let light = match ctx.string(kind)? {
+        "point" => Light::Point {
+            position: f.req("position", Ctx::vec3)?,
+            intensity: f.req("intensity", Ctx::color)?,
+        },
+        "directional" => {
+            let d = f.require("direction")?;
+            let direction = ctx
+                .vec3(d)?
+                .try_normalize()
+                .ok_or_else(|| ctx.error(d.span(), "expected a non-zero direction"))?;
+            Light::Directional {
+                direction,
+                irradiance: f.req("irradiance", Ctx::color)?,
+            }
+        }
+        other => {
+            return Err(ctx.error(
+                kind.span(),
+                format!("unknown light type `{other}`; expected one of: point, directional"),
+            ));
+        }
+    };
+    f.finish()?;
+    Ok(light)
+}
+
+fn read_object(
+    ctx: &Ctx,
+    v: &Value,
+    index: usize,
+    materials: &HashMap<String, u32>,
+) -> Result<Object> {
+    let mut f = Fields::of(ctx, v, format!("object {index}"))?;
+    let kind = f.require("shape")?;
+    let kind_name = ctx.string(kind)?;
+    f.what = format!("object {index} ({kind_name})");
+    let shape = match kind_name {
+        "sphere" => Shape::Sphere(Sphere::new(
+            f.req("center", Ctx::vec3)?,
+            f.checked("radius", None, |x| x > 0.0, "a positive radius")?,
+        )),
+        "plane" => {
+            let point = f.opt("point", Ctx::vec3)?.unwrap_or(Vec3::ZERO);
+            let normal = match f.get("normal") {
+                Some(n) => ctx
+                    .vec3(n)?
+                    .try_normalize()
+                    .ok_or_else(|| ctx.error(n.span(), "expected a non-zero normal"))?,
+                None => Vec3::Y,
+            };
+            Shape::Plane(Plane::new(point, normal))
+        }
+        "box" => {
+            let min = f.req("min", Ctx::vec3)?;
+            let max_value = f.require("max")?;
+            let max = ctx.vec3(max_value)?;
+            if !min.cmplt(max).all() {
+                return Err(ctx.error(
+                    max_value.span(),
+                    "expected `max` greater than `min` in every coordinate",
+                ));
+            }
+            Shape::Cuboid(Cuboid::new(min, max))
+        }
+        other => {
+            return Err(ctx.error(
+                kind.span(),
+                format!("unknown shape `{other}`; expected one of: sphere, plane, box"),
+            ));
+        }
+    };
+    let material = match f.get("material") {
+        None => 0,
+        Some(m) => {
+            let name = ctx.string(m)?;
+            *materials.get(name).ok_or_else(|| {
+                let mut names: Vec<&str> = materials.keys().map(String::as_str).collect();
+                names.sort_unstable();
+                ctx.error(
+                    m.span(),
+                    format!(
+                        "unknown material `{name}`; defined in [materials]: {}",
+                        if names.is_empty() {
+                            "none".to_string()
+                        } else {
+                            names.join(", ")
+                        }
+                    ),
+                )
+            })?
+        }
+    };
+    f.finish()?;
+    Ok(Object { shape, material })
+}
