@@ -107,6 +107,16 @@ fn run_render(args: RenderArgs) -> Result<()> {
         );
     }
 
+    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty())
+        && !dir.is_dir()
+    {
+        bail!(
+            "cannot write `{}`: folder `{}` does not exist",
+            output.display(),
+            dir.display()
+        );
+    }
+
     let load_start = Instant::now();
     let (
         SceneFile {

@@ -45,8 +45,7 @@ impl Cuboid {
     }
 
     /// The coordinate along the face's axis is snapped onto the face's plane,
-    /// so the point lies exactly on the box; `uv` are the two other world
-    /// coordinates (x and z on the top face).
+    /// so the point lies exactly on the box.
     pub fn surface(&self, ray: &Ray, hit: &ShapeHit) -> SurfacePoint {
         let axis = (hit.prim % EXIT) as usize;
         let d_axis = ray.d[axis];
@@ -66,16 +65,19 @@ impl Cuboid {
             n[axis] = -1.0;
         }
         let p = p.clamp(self.bounds.min, self.bounds.max);
-        let uv = match axis {
-            0 => Vec2::new(p.z, p.y),
-            1 => Vec2::new(p.x, p.z),
-            _ => Vec2::new(p.x, p.y),
-        };
         SurfacePoint {
             p,
             p_err: gamma(5) * p.abs(),
             n,
-            uv,
+        }
+    }
+
+    /// The two world coordinates across the face (x and z on the top face).
+    pub fn uv(&self, p: Vec3, prim: u32) -> Vec2 {
+        match prim % EXIT {
+            0 => Vec2::new(p.z, p.y),
+            1 => Vec2::new(p.x, p.z),
+            _ => Vec2::new(p.x, p.y),
         }
     }
 
@@ -114,7 +116,7 @@ mod tests {
         let s = b.surface(&r, &h);
         assert_eq!(s.n, Vec3::Y);
         assert_eq!(s.p, Vec3::new(0.5, 0.0, 2.0));
-        assert_eq!(s.uv, Vec2::new(0.5, 2.0));
+        assert_eq!(b.uv(s.p, h.prim), Vec2::new(0.5, 2.0));
     }
 
     #[test]

@@ -2,8 +2,9 @@
 //!
 //! Intersection is two-phase (as in Mitsuba): [`Shape::intersect`] returns only
 //! a small [`ShapeHit`] (the parameter `t` and a primitive index), and
-//! [`Shape::surface`] then computes the point, its error bound, normal and uv
-//! once, for the closest hit only. Shapes know nothing of materials.
+//! [`Shape::surface`] then computes the point, its error bound and normal
+//! once, for the closest hit only, and [`Shape::uv`] the texture coordinates
+//! only for textures that use them. Shapes know nothing of materials.
 
 mod cuboid;
 mod plane;
@@ -34,8 +35,6 @@ pub struct SurfacePoint {
     /// Unit geometric normal, pointing out of closed shapes (for a plane: its
     /// stated normal), whichever side the ray came from.
     pub n: Vec3,
-    /// Surface coordinates for textures.
-    pub uv: Vec2,
 }
 
 /// Where a ray segment crosses a shape's surface, for shadow rays that pass
@@ -82,6 +81,16 @@ impl Shape {
             Shape::Sphere(s) => s.surface(ray, hit),
             Shape::Plane(s) => s.surface(ray, hit),
             Shape::Cuboid(s) => s.surface(ray, hit),
+        }
+    }
+
+    /// Surface coordinates for textures at the surface point `p` of part `prim`.
+    #[inline]
+    pub fn uv(&self, p: Vec3, prim: u32) -> Vec2 {
+        match self {
+            Shape::Sphere(s) => s.uv(p),
+            Shape::Plane(s) => s.uv(p),
+            Shape::Cuboid(s) => s.uv(p, prim),
         }
     }
 

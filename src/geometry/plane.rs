@@ -57,14 +57,18 @@ impl Plane {
         let p_raw = ray.at(hit.t);
         let p = p_raw - (p_raw - self.point).dot(self.normal) * self.normal;
         let p_err = gamma(7) * (p.abs() + self.point.abs());
-        let rel = p - self.point;
-        let (u_axis, v_axis) = self.frame();
         SurfacePoint {
             p,
             p_err,
             n: self.normal,
-            uv: Vec2::new(rel.dot(u_axis), rel.dot(v_axis)),
         }
+    }
+
+    /// `((p − p′)·u, (p − p′)·v)` in the plane's [frame](Plane::frame).
+    pub fn uv(&self, p: Vec3) -> Vec2 {
+        let rel = p - self.point;
+        let (u_axis, v_axis) = self.frame();
+        Vec2::new(rel.dot(u_axis), rel.dot(v_axis))
     }
 
     pub fn crossings(&self, ray: &Ray) -> Crossings {
@@ -92,7 +96,7 @@ mod tests {
         assert_eq!(h.t, 4.0);
         let s = ground().surface(&r, &h);
         assert_eq!(s.p, Vec3::new(1.0, 0.0, 7.0));
-        assert_eq!(s.uv, Vec2::new(1.0, 7.0));
+        assert_eq!(ground().uv(s.p), Vec2::new(1.0, 7.0));
     }
 
     #[test]

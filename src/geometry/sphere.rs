@@ -2,7 +2,7 @@
 
 use super::{Crossings, ShapeHit, SurfacePoint};
 use crate::math::{Aabb, Ray, Vec3, gamma};
-use glam::{DVec3, Vec2};
+use glam::Vec2;
 
 /// A sphere with centre `center` and radius `radius > 0`.
 ///
@@ -31,33 +31,35 @@ impl Sphere {
     ///
     /// With `f = o − c` the quadratic is `a t² + 2 b t + c′ = 0`, `a = d·d`,
     /// `b = f·d`, `c′ = f·f − r²`. Two cancellations are avoided:
-    /// - the discriminant `b² − a c′` is computed as `a (r² − |f − (b/a) d|²)`,
-    ///   from the distance between the centre and the line (Haines et al., "Precision
-    ///   Improvements for Ray/Sphere Intersection", Ray Tracing Gems, ch. 7), which
-    ///   stays accurate for far-away and tiny spheres;
+    /// - the discriminant `b² − a c′` is computed as `a r² − |f × d|²` (Lagrange's
+    ///   identity: `|f × d|² = |f|²|d|² − (f·d)²`, `a` times the squared distance
+    ///   from the centre to the line, as in Haines et al., "Precision Improvements
+    ///   for Ray/Sphere Intersection", Ray Tracing Gems, ch. 7), which stays
+    ///   accurate for far-away and tiny spheres;
     /// - the roots are `q/a` and `c′/q` with `q = −(b + sign(b)·√Δ)`, so the
     ///   smaller root is not the difference of two nearly equal numbers.
     ///
-    /// The arithmetic is done in f64 (as Mitsuba does on the CPU): one test costs
-    /// about as much as in f32, and the roots are then exact to f32 precision.
+    /// The arithmetic is done in f64 (as Mitsuba does on the CPU). From f32
+    /// inputs `f` is exact and each product in `f × d` is exact, so the
+    /// discriminant is correct to a few f64 ulps; the roots are then exact to f32
+    /// precision. A miss, the common case, costs no division or square root.
     #[inline]
     pub fn roots(&self, ray: &Ray) -> Option<(f64, f64)> {
         let f = ray.o.as_dvec3() - self.center.as_dvec3();
         let d = ray.d.as_dvec3();
         let r = self.radius as f64;
         let a = d.dot(d);
-        let b = f.dot(d);
-        let l: DVec3 = f - d * (b / a);
-        let discriminant = a * (r - l.length()) * (r + l.length());
+        let discriminant = a * (r * r) - f.cross(d).length_squared();
         if discriminant < 0.0 {
             return None;
         }
+        let b = f.dot(d);
         let q = -(b + discriminant.sqrt().copysign(b));
-        let c = f.dot(f) - r * r;
         if q == 0.0 {
             // b = 0 and Δ = 0: the origin is on the sphere and the ray is tangent.
             return Some((0.0, 0.0));
         }
+        let c = f.dot(f) - r * r;
         let (t0, t1) = (q / a, c / q);
         Some(if t0 <= t1 { (t0, t1) } else { (t1, t0) })
     }
@@ -88,14 +90,16 @@ impl Sphere {
         let p_local = n * self.radius;
         let p = self.center + p_local;
         let p_err = gamma(5) * p_local.abs() + gamma(2) * p.abs();
+        SurfacePoint { p, p_err, n }
+    }
+
+    /// Spherical coordinates scaled to [0, 1]: `u = φ/2π` around the y axis
+    /// (from −x), `v = θ/π` from the north pole.
+    pub fn uv(&self, p: Vec3) -> Vec2 {
+        let n = ((p - self.center) / self.radius).clamp(Vec3::NEG_ONE, Vec3::ONE);
         let u = n.z.atan2(n.x) * (0.5 * std::f32::consts::FRAC_1_PI) + 0.5;
-        let v = n.y.clamp(-1.0, 1.0).acos() * std::f32::consts::FRAC_1_PI;
-        SurfacePoint {
-            p,
-            p_err,
-            n,
-            uv: Vec2::new(u, v),
-        }
+        let v = n.y.acos() * std::f32::consts::FRAC_1_PI;
+        Vec2::new(u, v)
     }
 
     pub fn crossings(&self, ray: &Ray) -> Crossings {

@@ -144,7 +144,7 @@ fn local_shading(
     counters: &mut Counters,
 ) -> Color {
     let m = &scene.materials[si.material as usize];
-    let albedo = m.texture.eval(si.p, si.uv);
+    let albedo = scene.albedo(si);
     let mut l = m.ambient * albedo * scene.ambient;
     if m.diffuse == 0.0 && m.specular == 0.0 {
         return l;

@@ -49,7 +49,7 @@ pub struct SceneFile {
 /// Why a scene could not be loaded. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("cannot read scene file `{}`: {source}", path.display())]
+    #[error("cannot read scene file `{}`", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,
@@ -193,6 +193,22 @@ impl Ctx<'_> {
     }
 }
 
+/// Levenshtein distance between two short strings.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let substitute = diagonal + usize::from(ca != cb);
+            diagonal = row[j + 1];
+            row[j + 1] = substitute.min(row[j] + 1).min(row[j + 1] + 1);
+        }
+    }
+    row[b.len()]
+}
+
 fn parse_integer(digits: &str, radix: u32) -> Option<i64> {
     let digits = digits.replace('_', "");
     let digits = match radix {
@@ -240,12 +256,29 @@ impl<'c, 'i> Fields<'c, 'i> {
         self.table.get(key)
     }
 
+    /// A key that must be present. When it is missing and an unknown key in
+    /// the table is a likely misspelling of it, that key is reported instead.
     fn require(&mut self, key: &'static str) -> Result<&'c Value<'i>> {
-        self.get(key).ok_or_else(|| {
-            self.ctx.error(
+        if let Some(v) = self.get(key) {
+            return Ok(v);
+        }
+        let typo = self.table.iter().map(|(k, _)| k).find(|k| {
+            let k = k.get_ref().as_ref();
+            !self.known.contains(&k) && edit_distance(k, key) <= 2
+        });
+        Err(match typo {
+            Some(k) => self.ctx.error(
+                k.span(),
+                format!(
+                    "unknown key `{}` in {}; did you mean `{key}`?",
+                    k.get_ref(),
+                    self.what
+                ),
+            ),
+            None => self.ctx.error(
                 self.span.clone(),
                 format!("missing required key `{key}` in {}", self.what),
-            )
+            ),
         })
     }
 

@@ -16,7 +16,6 @@ pub use texture::{CheckerMode, Texture};
 
 use crate::geometry::{Shape, SurfacePoint};
 use crate::math::{Color, Ray, Vec3};
-use glam::Vec2;
 
 /// A shape with a material (an index into [`Scene::materials`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -42,8 +41,9 @@ pub struct SurfaceInteraction {
     pub p_err: Vec3,
     /// Unit geometric normal (outward for closed shapes).
     pub n: Vec3,
-    pub uv: Vec2,
     pub material: u32,
+    pub object: u32,
+    pub prim: u32,
 }
 
 /// Counts of work done by scene queries, summed per tile by the renderer.
@@ -121,7 +121,7 @@ impl Scene {
     #[inline]
     pub fn surface(&self, ray: &Ray, hit: &Hit) -> SurfaceInteraction {
         let object = &self.objects[hit.object as usize];
-        let SurfacePoint { p, p_err, n, uv } = object.shape.surface(
+        let SurfacePoint { p, p_err, n } = object.shape.surface(
             ray,
             &crate::geometry::ShapeHit {
                 t: hit.t,
@@ -132,9 +132,19 @@ impl Scene {
             p,
             p_err,
             n,
-            uv,
             material: object.material,
+            object: hit.object,
+            prim: hit.prim,
         }
+    }
+
+    /// The colour of the surface's material at the point (its texture).
+    #[inline]
+    pub fn albedo(&self, si: &SurfaceInteraction) -> Color {
+        let shape = &self.objects[si.object as usize].shape;
+        self.materials[si.material as usize]
+            .texture
+            .eval(si.p, || shape.uv(si.p, si.prim))
     }
 
     /// Whether anything at all lies on the ray's segment (any-hit: stops at the

@@ -27,8 +27,10 @@ pub enum CheckerMode {
 }
 
 impl Texture {
+    /// The colour at world point `p`; `uv` gives the surface coordinates,
+    /// computed only for textures that use them.
     #[inline]
-    pub fn eval(&self, p: Vec3, uv: Vec2) -> Color {
+    pub fn eval(&self, p: Vec3, uv: impl FnOnce() -> Vec2) -> Color {
         match *self {
             Texture::Solid(c) => c,
             Texture::Checker {
@@ -38,7 +40,7 @@ impl Texture {
                 mode,
             } => {
                 let cells = match mode {
-                    CheckerMode::Planar => (uv / scale).floor().element_sum(),
+                    CheckerMode::Planar => (uv() / scale).floor().element_sum(),
                     CheckerMode::Solid => (p / scale).floor().element_sum(),
                 };
                 if cells.rem_euclid(2.0) == 0.0 {
@@ -63,17 +65,17 @@ mod tests {
             scale: 0.5,
             mode: CheckerMode::Planar,
         };
-        assert_eq!(t.eval(Vec3::ZERO, Vec2::new(0.1, 0.1)), Color::X);
-        assert_eq!(t.eval(Vec3::ZERO, Vec2::new(0.6, 0.1)), Color::Y);
-        assert_eq!(t.eval(Vec3::ZERO, Vec2::new(-0.1, 0.1)), Color::Y);
-        assert_eq!(t.eval(Vec3::ZERO, Vec2::new(-0.1, -0.1)), Color::X);
+        assert_eq!(t.eval(Vec3::ZERO, || Vec2::new(0.1, 0.1)), Color::X);
+        assert_eq!(t.eval(Vec3::ZERO, || Vec2::new(0.6, 0.1)), Color::Y);
+        assert_eq!(t.eval(Vec3::ZERO, || Vec2::new(-0.1, 0.1)), Color::Y);
+        assert_eq!(t.eval(Vec3::ZERO, || Vec2::new(-0.1, -0.1)), Color::X);
         let s = Texture::Checker {
             even: Color::X,
             odd: Color::Y,
             scale: 1.0,
             mode: CheckerMode::Solid,
         };
-        assert_eq!(s.eval(Vec3::new(0.5, 0.5, 0.5), Vec2::ZERO), Color::X);
-        assert_eq!(s.eval(Vec3::new(0.5, 1.5, 0.5), Vec2::ZERO), Color::Y);
+        assert_eq!(s.eval(Vec3::new(0.5, 0.5, 0.5), || Vec2::ZERO), Color::X);
+        assert_eq!(s.eval(Vec3::new(0.5, 1.5, 0.5), || Vec2::ZERO), Color::Y);
     }
 }
