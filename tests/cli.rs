@@ -1,0 +1,177 @@
+//! The `glint` binary: default render, overrides, output files, statistics,
+//! and errors.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn glint(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_glint"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the glint binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn no_arguments_render_the_builtin_scene_to_whitted_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = glint(dir.path(), &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let png = dir.path().join("whitted.png");
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (800, 600));
+    assert!(
+        stderr(&out).contains("wrote whitted.png"),
+        "{}",
+        stderr(&out)
+    );
+    // Only the image: no temporary file left behind.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
+#[test]
+fn threads_do_not_change_the_output_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = [
+        "render", "--width", "64", "--height", "48", "--spp", "2", "-q",
+    ];
+    let one = glint(
+        dir.path(),
+        &[&base[..], &["--threads", "1", "-o", "a.png"]].concat(),
+    );
+    let two = glint(
+        dir.path(),
+        &[&base[..], &["--threads", "2", "-o", "b.png"]].concat(),
+    );
+    assert!(one.status.success() && two.status.success());
+    let a = std::fs::read(dir.path().join("a.png")).unwrap();
+    let b = std::fs::read(dir.path().join("b.png")).unwrap();
+    assert_eq!(a, b);
+}
+
+#[test]
+fn stats_json_has_the_documented_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = glint(
+        dir.path(),
+        &[
+            "render",
+            "--width",
+            "40",
+            "--height",
+            "30",
+            "--spp",
+            "1",
+            "--stats-json",
+            "s.json",
+            "-o",
+            "x.exr",
+            "-q",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(out.stderr.is_empty(), "--quiet printed {}", stderr(&out));
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("s.json")).unwrap()).unwrap();
+    assert_eq!(v["width"], 40);
+    assert_eq!(v["height"], 30);
+    assert_eq!(v["spp"], 1);
+    assert!(v["seconds_render"].as_f64().unwrap() > 0.0);
+    assert!(v["seconds_load"].as_f64().is_some());
+    assert_eq!(v["rays"]["camera"], 1200);
+    for k in ["shadow", "reflection", "refraction"] {
+        assert!(v["rays"][k].as_u64().unwrap() > 0, "{k}");
+    }
+    assert!(v["intersection_tests"].as_u64().unwrap() > 1200);
+    assert_eq!(v["nan_pixels"], 0);
+    // The EXR holds linear radiance: the top-left pixel is the sky colour.
+    let exr = exr::prelude::read_first_rgba_layer_from_file(
+        dir.path().join("x.exr"),
+        |res, _| vec![[0f32; 3]; res.width() * res.height()],
+        |px: &mut Vec<[f32; 3]>, pos, (r, g, b, _): (f32, f32, f32, f32)| {
+            px[pos.y() * 40 + pos.x()] = [r, g, b]
+        },
+    )
+    .unwrap();
+    assert_eq!(exr.layer_data.channel_data.pixels[0], [0.03, 0.12, 0.6]);
+}
+
+#[test]
+fn command_line_overrides_the_scene_file() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("tiny.toml"),
+        "[camera]\nposition = [0, 0, -3]\nlook_at = [0, 0, 0]\n[render]\nwidth = 10\nheight = 10\nintegrator = \"whitted\"\n",
+    )
+    .unwrap();
+    let out = glint(
+        dir.path(),
+        &[
+            "render",
+            "tiny.toml",
+            "--width",
+            "12",
+            "--integrator",
+            "raycast",
+            "--stats-json",
+            "s.json",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let img = image::open(dir.path().join("tiny.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (12, 10));
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("s.json")).unwrap()).unwrap();
+    assert_eq!(v["integrator"], "raycast");
+}
+
+#[test]
+fn errors_are_clear_and_leave_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("bad.toml"),
+        "[camera]\nposition = [0, 0]\nlook_at = [0, 0, 1]\n",
+    )
+    .unwrap();
+    let out = glint(dir.path(), &["render", "bad.toml"]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("bad.toml:2:12: expected an array of 3 numbers"),
+        "{}",
+        stderr(&out)
+    );
+
+    let out = glint(dir.path(), &["render", "missing.toml"]);
+    assert!(
+        stderr(&out).contains("cannot read scene file `missing.toml`"),
+        "{}",
+        stderr(&out)
+    );
+
+    let out = glint(dir.path(), &["render", "-o", "picture.jpg"]);
+    assert!(
+        stderr(&out).contains("unsupported file extension"),
+        "{}",
+        stderr(&out)
+    );
+
+    let out = glint(dir.path(), &["render", "--spp", "0"]);
+    assert!(!out.status.success());
+
+    let out = glint(dir.path(), &["render", "-o", "nowhere/x.png"]);
+    assert!(
+        stderr(&out).contains("folder `nowhere` does not exist"),
+        "{}",
+        stderr(&out)
+    );
+
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, vec![std::ffi::OsString::from("bad.toml")]);
+}

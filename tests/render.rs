@@ -1,0 +1,329 @@
+//! Image-level tests of the renderer on small scenes with known answers.
+
+use glint::math::{Color, Ray, Vec3};
+use glint::render::{Counters, Integrator, render, render_with};
+use glint::scene::{BUILTIN_WHITTED, Scene, SceneFile, TraceCounters, parse_scene};
+use glint::settings::{IntegratorKind, RenderSettings};
+use std::path::Path;
+
+fn scene(text: &str) -> SceneFile {
+    parse_scene(text, Path::new("test.toml")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn whitted(width: u32, height: u32) -> (SceneFile, RenderSettings) {
+    let file = scene(BUILTIN_WHITTED);
+    let settings = RenderSettings {
+        width,
+        height,
+        spp: 1,
+        ..file.settings.clone()
+    };
+    (file, settings)
+}
+
+#[test]
+fn default_scene_renders_without_nan() {
+    let (file, settings) = whitted(64, 48);
+    let (image, stats) = render(&file.scene, &settings, &|_| {}).unwrap();
+    assert_eq!(stats.nan_pixels, 0);
+    assert!(
+        image
+            .pixels
+            .iter()
+            .all(|c| c.is_finite() && c.min_element() >= 0.0)
+    );
+    // The picture is not blank: sky, checks and spheres give many colours.
+    let mut distinct: Vec<[u8; 3]> = image
+        .to_srgb8()
+        .chunks(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
+    distinct.sort_unstable();
+    distinct.dedup();
+    assert!(distinct.len() > 100, "{} colours", distinct.len());
+    // The top row is sky: the background colour exactly.
+    assert_eq!(image.get(0, 0), file.scene.background);
+}
+
+#[test]
+fn thread_count_does_not_change_a_single_bit() {
+    let (file, mut settings) = whitted(67, 45); // not a multiple of the tile size
+    settings.spp = 3;
+    settings.threads = 1;
+    let (one, s1) = render(&file.scene, &settings, &|_| {}).unwrap();
+    settings.threads = 2;
+    let (two, s2) = render(&file.scene, &settings, &|_| {}).unwrap();
+    settings.threads = 5;
+    let (five, _) = render(&file.scene, &settings, &|_| {}).unwrap();
+    let bits = |img: &glint::render::Image| -> Vec<u32> {
+        img.pixels
+            .iter()
+            .flat_map(|c| c.to_array().map(f32::to_bits))
+            .collect()
+    };
+    assert_eq!(bits(&one), bits(&two));
+    assert_eq!(bits(&one), bits(&five));
+    assert_eq!(s1.rays, s2.rays);
+    assert_eq!(s1.intersection_tests, s2.intersection_tests);
+}
+
+#[test]
+fn raycast_traces_no_secondary_rays_and_whitted_does() {
+    let (file, mut settings) = whitted(48, 36);
+    settings.integrator = IntegratorKind::Raycast;
+    let (_, ray) = render(&file.scene, &settings, &|_| {}).unwrap();
+    assert_eq!(ray.rays.reflection, 0);
+    assert_eq!(ray.rays.refraction, 0);
+    assert_eq!(ray.rays.camera, 48 * 36);
+    assert!(ray.rays.shadow > 0);
+    settings.integrator = IntegratorKind::Whitted;
+    let (_, wh) = render(&file.scene, &settings, &|_| {}).unwrap();
+    assert!(wh.rays.reflection > 0 && wh.rays.refraction > 0);
+    assert_eq!(wh.rays.camera, ray.rays.camera);
+}
+
+#[test]
+fn max_depth_zero_is_ray_casting() {
+    let (file, mut settings) = whitted(40, 30);
+    settings.max_depth = 0;
+    let (a, sa) = render(&file.scene, &settings, &|_| {}).unwrap();
+    settings.integrator = IntegratorKind::Raycast;
+    let (b, _) = render(&file.scene, &settings, &|_| {}).unwrap();
+    assert_eq!(sa.rays.reflection + sa.rays.refraction, 0);
+    assert_eq!(a, b);
+}
+
+#[test]
+fn min_weight_prunes_secondary_rays() {
+    let (file, mut settings) = whitted(48, 36);
+    let (_, all) = render(&file.scene, &settings, &|_| {}).unwrap();
+    settings.min_weight = 0.5;
+    let (_, pruned) = render(&file.scene, &settings, &|_| {}).unwrap();
+    // Fresnel reflection off glass (R ≈ 0.04 … 1) is mostly below 0.5.
+    assert!(pruned.rays.reflection < all.rays.reflection / 2);
+    assert!(pruned.rays.refraction > 0);
+}
+
+/// A red Lambertian wall at z = 4 lit head-on by a point light, seen through a
+/// glass sphere: the centre ray crosses the sphere at normal incidence, so it
+/// sees the wall scaled by the Fresnel transmittance (1 − 0.04)² = 0.9216,
+/// plus light reflected inside the sphere twice or more (≤ R² ≈ 0.2%).
+const GLASS_IN_FRONT_OF_WALL: &str = r#"
+[camera]
+position = [0, 0, -5]
+look_at = [0, 0, 0]
+fov = 30
+
+[render]
+background = [0, 0, 0]
+
+[materials]
+glass = { type = "dielectric", ior = 1.5 }
+wall = { type = "diffuse", color = [0.8, 0.1, 0.1] }
+
+[[light]]
+type = "point"
+position = [0, 3, 1]
+intensity = 10
+
+[[object]]
+shape = "sphere"
+center = [0, 0, 0]
+radius = 1
+material = "glass"
+
+[[object]]
+shape = "plane"
+point = [0, 0, 4]
+normal = [0, 0, -1]
+material = "wall"
+"#;
+
+#[test]
+fn ray_through_glass_centre_sees_the_wall_behind() {
+    let file = scene(GLASS_IN_FRONT_OF_WALL);
+    let s = &file.scene;
+    let integrator = glint::render::Whitted {
+        max_depth: 8,
+        min_weight: 1e-6,
+    };
+    let mut counters = Counters::default();
+    let through = integrator.radiance(
+        s,
+        &Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z),
+        &mut counters,
+    );
+    // The wall point (0, 0, 4): light at (0, 3, 1) → L = (0, 3, −3)/√18,
+    // N·L = 3/√18, irradiance 10/18; the shadow ray misses the sphere.
+    let cos = 3.0 / 18f32.sqrt();
+    let wall = Color::new(0.8, 0.1, 0.1) * cos * 10.0 / 18.0;
+    let expected = wall * 0.96 * 0.96;
+    assert!(through.x > 0.1, "black: {through:?}");
+    let rel = (through - expected).abs() / expected;
+    assert!(rel.max_element() < 0.003, "{through:?} vs {expected:?}");
+    // Into the sphere and out again at least.
+    assert!(counters.rays.refraction >= 2);
+}
+
+#[test]
+fn shadow_through_glass_is_filtered_and_opaque_is_black() {
+    let file = scene(GLASS_IN_FRONT_OF_WALL);
+    let s = &file.scene;
+    let mut c = TraceCounters::default();
+    // Straight through the centre: two crossings at normal incidence.
+    let through = Ray::spawn_to(
+        Vec3::new(0.0, 0.0, -3.0),
+        Vec3::ZERO,
+        -Vec3::Z,
+        Vec3::new(0.0, 0.0, 3.0),
+    );
+    let t = s.transmittance(&through, &mut c);
+    assert!(
+        (t - Color::splat(0.9216)).abs().max_element() < 1e-4,
+        "{t:?}"
+    );
+    // Missing the sphere: fully lit.
+    let beside = Ray::spawn_to(
+        Vec3::new(2.0, 0.0, -3.0),
+        Vec3::ZERO,
+        -Vec3::Z,
+        Vec3::new(2.0, 0.0, 3.0),
+    );
+    assert_eq!(s.transmittance(&beside, &mut c), Color::ONE);
+    // The wall is opaque.
+    let into_wall = Ray::spawn_to(
+        Vec3::new(2.0, 0.0, 3.0),
+        Vec3::ZERO,
+        -Vec3::Z,
+        Vec3::new(2.0, 0.0, 5.0),
+    );
+    assert_eq!(s.transmittance(&into_wall, &mut c), Color::ZERO);
+    assert!(s.occluded(&into_wall, &mut c));
+}
+
+/// Ray casting of a Lambertian plane under a directional light: every pixel
+/// that sees the plane has radiance `albedo · cos θ · E` exactly, with no
+/// dependence on distance.
+#[test]
+fn lambertian_plane_under_directional_light_matches_closed_form() {
+    let file = scene(
+        r#"
+[camera]
+position = [0, 2, -4]
+look_at = [0, 1.5, 0]
+
+[render]
+width = 24
+height = 16
+integrator = "raycast"
+background = [0, 0, 1]
+ambient = [0.1, 0.1, 0.1]
+
+[materials]
+grey = { type = "diffuse", color = [0.5, 0.25, 1.0], ambient = 0.5 }
+
+[[light]]
+type = "directional"
+direction = [1, -2, 0]
+irradiance = 2
+
+[[object]]
+shape = "plane"
+material = "grey"
+"#,
+    );
+    let (image, _) = render(&file.scene, &file.settings, &|_| {}).unwrap();
+    let cos = 2.0 / 5f32.sqrt();
+    let albedo = Color::new(0.5, 0.25, 1.0);
+    let expected = albedo * cos * 2.0 + albedo * 0.5 * 0.1;
+    let (mut plane, mut sky) = (0, 0);
+    for c in &image.pixels {
+        if *c == Color::new(0.0, 0.0, 1.0) {
+            sky += 1;
+        } else {
+            plane += 1;
+            assert!(
+                (*c - expected).abs().max_element() < 1e-5,
+                "{c:?} vs {expected:?}"
+            );
+        }
+    }
+    assert!(plane > 100 && sky > 50, "{plane} plane, {sky} sky pixels");
+}
+
+/// A mirror tints what it reflects: a camera looking down at a mirror floor
+/// sees the sky (background) scaled by the reflectance.
+#[test]
+fn mirror_reflects_the_background_tinted() {
+    let file = scene(
+        r#"
+[camera]
+position = [0, 1, 0]
+look_at = [0, 0, 0.001]
+fov = 10
+
+[render]
+width = 8
+height = 8
+background = [0.2, 0.4, 0.8]
+
+[materials]
+m = { type = "mirror", reflectance = [0.5, 1, 0.25] }
+
+[[object]]
+shape = "plane"
+material = "m"
+"#,
+    );
+    let (image, stats) = render(&file.scene, &file.settings, &|_| {}).unwrap();
+    let expected = Color::new(0.1, 0.4, 0.2);
+    for c in &image.pixels {
+        assert!((*c - expected).abs().max_element() < 1e-6, "{c:?}");
+    }
+    assert_eq!(stats.rays.reflection, 64);
+}
+
+/// An integrator that returns NaN and infinity for some rays: the renderer
+/// must count them and keep every pixel finite.
+struct Broken;
+
+impl Integrator for Broken {
+    fn radiance(&self, _: &Scene, ray: &Ray, _: &mut Counters) -> Color {
+        if ray.d.x > 0.2 {
+            Color::splat(f32::NAN)
+        } else if ray.d.x < -0.2 {
+            Color::new(f32::INFINITY, 0.0, 0.0)
+        } else {
+            Color::ONE
+        }
+    }
+}
+
+#[test]
+fn nan_and_infinity_never_reach_a_pixel() {
+    let (file, mut settings) = whitted(32, 16);
+    settings.spp = 4;
+    let (image, stats) = render_with(&file.scene, &settings, &Broken, &|_| {}).unwrap();
+    assert!(image.pixels.iter().all(|c| c.is_finite()));
+    assert!(stats.nan_pixels > 0 && stats.nan_pixels < 32 * 16);
+    assert!(stats.bad_samples >= stats.nan_pixels);
+}
+
+#[test]
+fn more_samples_converge_towards_the_same_image() {
+    // Stratified supersampling: 16 spp differs from 64 spp less than 1 spp does.
+    let (file, mut settings) = whitted(32, 24);
+    let mut run = |spp| {
+        settings.spp = spp;
+        render(&file.scene, &settings, &|_| {}).unwrap().0
+    };
+    let (one, sixteen, many) = (run(1), run(16), run(64));
+    let diff = |a: &glint::render::Image, b: &glint::render::Image| -> f32 {
+        a.pixels
+            .iter()
+            .zip(&b.pixels)
+            .map(|(x, y)| (*x - *y).abs().element_sum())
+            .sum()
+    };
+    assert!(diff(&sixteen, &many) < 0.5 * diff(&one, &many));
+}
