@@ -73,6 +73,38 @@ impl Default for RenderSettings {
     }
 }
 
+impl RenderSettings {
+    /// Checks the settings a render depends on; the error says what is wrong.
+    pub fn validate(&self) -> Result<(), String> {
+        let side = 1..=MAX_IMAGE_SIDE;
+        if !side.contains(&self.width) || !side.contains(&self.height) {
+            return Err(format!(
+                "image size {}×{} is out of range (each side from 1 to {MAX_IMAGE_SIDE})",
+                self.width, self.height
+            ));
+        }
+        let pixels = self.width as u64 * self.height as u64;
+        if pixels > MAX_PIXELS {
+            return Err(format!(
+                "image size {}×{} has {pixels} pixels, more than the limit of {MAX_PIXELS}",
+                self.width, self.height
+            ));
+        }
+        if !(1..=MAX_SPP).contains(&self.spp) {
+            return Err(format!("spp {} is out of range (1 to {MAX_SPP})", self.spp));
+        }
+        if self.max_depth > MAX_DEPTH {
+            return Err(format!("max_depth {} is above {MAX_DEPTH}", self.max_depth));
+        }
+        if !(0.0..=1.0).contains(&self.min_weight) {
+            return Err(format!("min_weight {} is not in [0, 1]", self.min_weight));
+        }
+        Ok(())
+    }
+}
+
+/// Largest accepted number of pixels (the film holds 16 bytes per pixel).
+pub const MAX_PIXELS: u64 = 1 << 27;
 /// Largest accepted image side, in pixels.
 pub const MAX_IMAGE_SIDE: u32 = 1 << 15;
 /// Largest accepted sample count per pixel.

@@ -327,3 +327,87 @@ fn more_samples_converge_towards_the_same_image() {
     };
     assert!(diff(&sixteen, &many) < 0.5 * diff(&one, &many));
 }
+
+#[test]
+fn absorbing_glass_attenuates_by_beer_lambert() {
+    // The centre ray travels 2 units inside the sphere.
+    let clear = scene(GLASS_IN_FRONT_OF_WALL);
+    let tinted = scene(&GLASS_IN_FRONT_OF_WALL.replace(
+        "glass = { type = \"dielectric\", ior = 1.5 }",
+        "glass = { type = \"dielectric\", ior = 1.5, absorption = [0.1, 0.5, 1.0] }",
+    ));
+    let integrator = glint::render::Whitted {
+        max_depth: 8,
+        min_weight: 1e-6,
+    };
+    let ray = Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z);
+    let mut c = Counters::default();
+    let a = integrator.radiance(&clear.scene, &ray, &mut c);
+    let b = integrator.radiance(&tinted.scene, &ray, &mut c);
+    let ratio = b.x / a.x;
+    assert!((ratio - (-0.2f32).exp()).abs() < 2e-3, "{ratio}");
+    // Shadow rays through it are tinted the same way.
+    let shadow = Ray::spawn_to(
+        Vec3::new(0.0, 0.0, -3.0),
+        Vec3::ZERO,
+        -Vec3::Z,
+        Vec3::new(0.0, 0.0, 3.0),
+    );
+    let t = tinted
+        .scene
+        .transmittance(&shadow, &mut TraceCounters::default());
+    let expected = 0.9216 * (-Color::new(0.1, 0.5, 1.0) * 2.0).exp();
+    assert!(
+        (t - expected).abs().max_element() < 1e-4,
+        "{t:?} vs {expected:?}"
+    );
+}
+
+#[test]
+fn solid_checker_alternates_in_world_space() {
+    // A camera looking straight down at a plane with a solid checker of 1-unit
+    // cubes: the colour changes across x = 0 and z = 0.
+    let file = scene(
+        r#"
+[camera]
+position = [0, 5, 0]
+look_at = [0, 0, 0]
+up = [0, 0, 1]
+fov = 30
+
+[render]
+width = 20
+height = 20
+integrator = "raycast"
+ambient = 1
+
+[materials]
+c = { type = "diffuse", texture = { checker = [[1, 0, 0], [0, 0, 1]], scale = 1, mode = "solid" }, diffuse = 0 }
+
+[[object]]
+shape = "plane"
+point = [0, 0.5, 0]
+material = "c"
+"#,
+    );
+    let (image, _) = render(&file.scene, &file.settings, &|_| {}).unwrap();
+    let (a, b) = (image.get(4, 4), image.get(15, 4));
+    assert!(a == Color::X || a == Color::Z);
+    assert!(b == Color::X || b == Color::Z);
+    assert_ne!(a, b);
+    assert_eq!(image.get(4, 4), image.get(15, 15));
+}
+
+#[test]
+fn invalid_settings_are_errors_not_panics() {
+    let (file, mut settings) = whitted(0, 10);
+    assert!(render(&file.scene, &settings, &|_| {}).is_err());
+    settings.width = 30000;
+    settings.height = 30000;
+    let e = render(&file.scene, &settings, &|_| {}).unwrap_err();
+    assert!(e.to_string().contains("more than the limit"), "{e}");
+    settings.width = 8;
+    settings.height = 8;
+    settings.min_weight = f32::NAN;
+    assert!(render(&file.scene, &settings, &|_| {}).is_err());
+}

@@ -180,9 +180,14 @@ fn shipped_scenes_parse() {
 
 #[test]
 fn documented_example_parses() {
-    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scene-format.md")).unwrap();
-    let start = doc.find("```toml\n").expect("docs/scene-format.md has an example") + 8;
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scene-format.md"))
+        .unwrap();
+    let start = doc
+        .find("```toml\n")
+        .expect("docs/scene-format.md has an example")
+        + 8;
     let end = start + doc[start..].find("```").unwrap();
-    let f = parse_scene(&doc[start..end], Path::new("docs/scene-format.md")).unwrap_or_else(|e| panic!("{e}"));
+    let f = parse_scene(&doc[start..end], Path::new("docs/scene-format.md"))
+        .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(f.scene.objects.len(), 2);
 }

@@ -26,6 +26,8 @@ pub const TILE_SIZE: u32 = 16;
 
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
+    #[error("invalid render settings: {0}")]
+    Settings(String),
     #[error("cannot start {threads} render threads: {message}")]
     ThreadPool { threads: usize, message: String },
 }
@@ -58,6 +60,7 @@ pub fn render_with<I: Integrator>(
     integrator: &I,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Image, RenderStats), RenderError> {
+    settings.validate().map_err(RenderError::Settings)?;
     let start = Instant::now();
     let (image, counters, threads) = if settings.threads == 0 {
         let (image, counters) = render_tiles(scene, settings, integrator, progress);
