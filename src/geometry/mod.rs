@@ -7,22 +7,37 @@
 //! only for textures that use them. Shapes know nothing of materials.
 
 mod cuboid;
+pub mod implicit;
 mod plane;
 mod sphere;
 
 pub use cuboid::Cuboid;
+pub use implicit::Implicit;
 pub use plane::Plane;
 pub use sphere::Sphere;
 
 use crate::math::{Aabb, Ray, Vec3};
 use glam::Vec2;
 
-/// A ray–shape hit: the ray parameter and which part of the shape was hit
-/// (the face of a box; 0 for shapes with one part).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A ray–shape hit: the ray parameter, which part of the shape was hit (the
+/// face of a box; 0 for shapes with one part), and two numbers the shape keeps
+/// for [`Shape::surface`] (an implicit surface keeps the f64 part of `t` lost
+/// in rounding it to f32).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ShapeHit {
     pub t: f32,
     pub prim: u32,
+    pub u: f32,
+    pub v: f32,
+}
+
+/// Counts of work done by intersection queries, summed per tile by the renderer.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraceCounters {
+    /// Ray–shape intersection tests.
+    pub intersection_tests: u64,
+    /// Interval evaluations of implicit surfaces' formulas.
+    pub implicit_evaluations: u64,
 }
 
 /// The surface at a hit point.
@@ -37,40 +52,24 @@ pub struct SurfacePoint {
     pub n: Vec3,
 }
 
-/// Where a ray segment crosses a shape's surface, for shadow rays that pass
-/// through transparent objects: how many crossings lie in `[t_min, t_max)`, the
-/// cosine of the angle between the ray and the normal at each, and the length
-/// of the segment inside the shape (zero for a plane).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Crossings {
-    pub count: u8,
-    pub cos: [f32; 2],
-    pub inside_length: f32,
-}
-
-impl Crossings {
-    fn push(&mut self, cos: f32) {
-        self.cos[self.count as usize] = cos.abs().min(1.0);
-        self.count += 1;
-    }
-}
-
 /// The closed set of shapes, dispatched by `match` (no vtable in the hot loop).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     Sphere(Sphere),
     Plane(Plane),
     Cuboid(Cuboid),
+    Implicit(Box<Implicit>),
 }
 
 impl Shape {
     /// The closest hit with `t ∈ [ray.t_min, ray.t_max)`.
     #[inline]
-    pub fn intersect(&self, ray: &Ray) -> Option<ShapeHit> {
+    pub fn intersect(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
         match self {
             Shape::Sphere(s) => s.intersect(ray),
             Shape::Plane(s) => s.intersect(ray),
             Shape::Cuboid(s) => s.intersect(ray),
+            Shape::Implicit(s) => s.intersect(ray, counters),
         }
     }
 
@@ -81,6 +80,7 @@ impl Shape {
             Shape::Sphere(s) => s.surface(ray, hit),
             Shape::Plane(s) => s.surface(ray, hit),
             Shape::Cuboid(s) => s.surface(ray, hit),
+            Shape::Implicit(s) => s.surface(ray, hit),
         }
     }
 
@@ -91,16 +91,27 @@ impl Shape {
             Shape::Sphere(s) => s.uv(p),
             Shape::Plane(s) => s.uv(p),
             Shape::Cuboid(s) => s.uv(p, prim),
+            // World x and z: a projection from above.
+            Shape::Implicit(_) => Vec2::new(p.x, p.z),
         }
     }
 
-    /// Every crossing of the ray's segment `[t_min, t_max)` with the surface.
+    /// For shadow rays through transparent objects: calls `crossing` with
+    /// `|cos θ|` (between the ray and the normal) at every crossing of the ray's
+    /// segment `[t_min, t_max)` with the surface, and returns the length of the
+    /// segment inside the shape (zero for a plane).
     #[inline]
-    pub fn crossings(&self, ray: &Ray) -> Crossings {
+    pub fn crossings(
+        &self,
+        ray: &Ray,
+        counters: &mut TraceCounters,
+        crossing: &mut impl FnMut(f32),
+    ) -> f32 {
         match self {
-            Shape::Sphere(s) => s.crossings(ray),
-            Shape::Plane(s) => s.crossings(ray),
-            Shape::Cuboid(s) => s.crossings(ray),
+            Shape::Sphere(s) => s.crossings(ray, crossing),
+            Shape::Plane(s) => s.crossings(ray, crossing),
+            Shape::Cuboid(s) => s.crossings(ray, crossing),
+            Shape::Implicit(s) => s.crossings(ray, counters, crossing),
         }
     }
 
@@ -110,6 +121,7 @@ impl Shape {
             Shape::Sphere(s) => s.bounds(),
             Shape::Plane(_) => Aabb::new(Vec3::NEG_INFINITY, Vec3::INFINITY),
             Shape::Cuboid(s) => s.bounds,
+            Shape::Implicit(s) => s.bounds(),
         }
     }
 }

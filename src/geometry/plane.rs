@@ -1,6 +1,6 @@
 //! Infinite plane `(p − p′)·N = 0`.
 
-use super::{Crossings, ShapeHit, SurfacePoint};
+use super::{ShapeHit, SurfacePoint};
 use crate::math::{Ray, Vec3, gamma, orthonormal_basis};
 use glam::Vec2;
 
@@ -47,7 +47,10 @@ impl Plane {
             return None;
         }
         let t = (self.point - ray.o).dot(self.normal) / denom;
-        ray.contains(t).then_some(ShapeHit { t, prim: 0 })
+        ray.contains(t).then_some(ShapeHit {
+            t,
+            ..ShapeHit::default()
+        })
     }
 
     /// The hit point `o + t·d` is projected back onto the plane,
@@ -71,12 +74,12 @@ impl Plane {
         Vec2::new(rel.dot(u_axis), rel.dot(v_axis))
     }
 
-    pub fn crossings(&self, ray: &Ray) -> Crossings {
-        let mut out = Crossings::default();
+    /// See [`super::Shape::crossings`]: at most one crossing, no inside.
+    pub fn crossings(&self, ray: &Ray, crossing: &mut impl FnMut(f32)) -> f32 {
         if self.intersect(ray).is_some() {
-            out.push(ray.d.dot(self.normal) / ray.d.length());
+            crossing((ray.d.dot(self.normal) / ray.d.length()).abs().min(1.0));
         }
-        out
+        0.0
     }
 }
 

@@ -1,6 +1,6 @@
 //! Sphere `|p − c|² = r²`.
 
-use super::{Crossings, ShapeHit, SurfacePoint};
+use super::{ShapeHit, SurfacePoint};
 use crate::math::{Aabb, Ray, Vec3, gamma};
 use glam::Vec2;
 
@@ -77,7 +77,10 @@ impl Sphere {
         } else {
             return None;
         };
-        Some(ShapeHit { t, prim: 0 })
+        Some(ShapeHit {
+            t,
+            ..ShapeHit::default()
+        })
     }
 
     /// The hit point is re-projected onto the sphere, `p = c + (p′ − c)·r/|p′ − c|`
@@ -102,22 +105,21 @@ impl Sphere {
         Vec2::new(u, v)
     }
 
-    pub fn crossings(&self, ray: &Ray) -> Crossings {
-        let mut out = Crossings::default();
+    /// See [`super::Shape::crossings`].
+    pub fn crossings(&self, ray: &Ray, crossing: &mut impl FnMut(f32)) -> f32 {
         let Some((t0, t1)) = self.roots(ray) else {
-            return out;
+            return 0.0;
         };
         let (t0, t1) = (t0 as f32, t1 as f32);
         let d_len = ray.d.length();
         for t in [t0, t1] {
             if ray.contains(t) {
                 let n = (ray.at(t) - self.center) / self.radius;
-                out.push(n.dot(ray.d) / d_len);
+                crossing((n.dot(ray.d) / d_len).abs().min(1.0));
             }
         }
         let inside = t1.min(ray.t_max) - t0.max(ray.t_min);
-        out.inside_length = inside.max(0.0) * d_len;
-        out
+        inside.max(0.0) * d_len
     }
 }
 
@@ -200,14 +202,14 @@ mod tests {
     #[test]
     fn crossings_count_both_sides_and_inside_length() {
         let r = Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z);
-        let c = unit().crossings(&r);
-        assert_eq!(c.count, 2);
-        assert_eq!(c.cos, [1.0, 1.0]);
-        assert_eq!(c.inside_length, 2.0);
+        let mut cos = Vec::new();
+        assert_eq!(unit().crossings(&r, &mut |c| cos.push(c)), 2.0);
+        assert_eq!(cos, [1.0, 1.0]);
         let mut short = r;
         short.t_max = 5.0;
-        let c = unit().crossings(&short);
-        assert_eq!((c.count, c.inside_length), (1, 1.0));
+        let mut count = 0;
+        assert_eq!(unit().crossings(&short, &mut |_| count += 1), 1.0);
+        assert_eq!(count, 1);
     }
 
     #[test]

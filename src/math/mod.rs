@@ -2,11 +2,15 @@
 
 mod aabb;
 mod float;
+mod interval;
 mod ray;
+mod transform;
 
-pub use aabb::Aabb;
+pub use aabb::{Aabb, SlabHit};
 pub use float::{MACHINE_EPSILON, MIN_OFFSET, gamma, offset_ray_origin};
+pub use interval::Interval;
 pub use ray::{Ray, SHADOW_EPSILON};
+pub use transform::Transform;
 
 /// Linear RGB colour. The components are red, green and blue (`x`, `y`, `z`).
 pub type Color = glam::Vec3A;

@@ -26,9 +26,11 @@
 //! ```
 
 use super::{Camera, CheckerMode, Light, Material, MaterialKind, Object, Scene, Texture};
-use crate::geometry::{Cuboid, Plane, Shape, Sphere};
-use crate::math::{Color, Vec3};
+use crate::geometry::implicit::{HEART_BOUNDS, HEART_FORMULA, ImplicitError, torus_formula};
+use crate::geometry::{Cuboid, Implicit, Plane, Shape, Sphere};
+use crate::math::{Aabb, Color, Transform, Vec3};
 use crate::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP, RenderSettings};
+use glam::DVec3;
 use std::collections::HashMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -586,6 +588,121 @@ fn read_light(ctx: &Ctx, v: &Value, index: usize) -> Result<Light> {
     Ok(light)
 }
 
+/// `bounds = [[x, y, z], [x, y, z]]`, min then max.
+fn read_bounds(ctx: &Ctx, v: &Value) -> Result<Aabb> {
+    const WHAT: &str = "[[min x, y, z], [max x, y, z]]";
+    let corners = ctx.array(v, WHAT)?;
+    if corners.len() != 2 {
+        return Err(ctx.error(
+            v.span(),
+            format!("expected {WHAT}, found {} elements", corners.len()),
+        ));
+    }
+    let (min, max) = (ctx.vec3(&corners[0])?, ctx.vec3(&corners[1])?);
+    if !min.cmplt(max).all() {
+        return Err(ctx.error(
+            corners[1].span(),
+            "expected the second corner greater than the first in every coordinate",
+        ));
+    }
+    Ok(Aabb::new(min, max))
+}
+
+/// `transform = { scale = s | [sx, sy, sz], rotate_x = deg, rotate_y = deg,
+/// rotate_z = deg, translate = [x, y, z] }`: scale, then rotate about x, y, z,
+/// then translate.
+fn read_transform(ctx: &Ctx, v: &Value) -> Result<Transform> {
+    let mut f = Fields::of(ctx, v, "the transform".into())?;
+    let scale = match f.get("scale") {
+        None => Vec3::ONE,
+        Some(s) => match s.get_ref() {
+            DeValue::Array(_) => ctx.vec3(s)?,
+            _ => Vec3::splat(ctx.number(s)?),
+        },
+    };
+    let any = |_: f32| true;
+    let rotate = DVec3::new(
+        f.checked("rotate_x", Some(0.0), any, "an angle in degrees")? as f64,
+        f.checked("rotate_y", Some(0.0), any, "an angle in degrees")? as f64,
+        f.checked("rotate_z", Some(0.0), any, "an angle in degrees")? as f64,
+    );
+    let translate = f.opt("translate", Ctx::vec3)?.unwrap_or(Vec3::ZERO);
+    f.finish()?;
+    Transform::from_parts(scale.as_dvec3(), rotate, translate.as_dvec3())
+        .ok_or_else(|| ctx.error(v.span(), "the transform is singular (a scale is zero)"))
+}
+
+/// An implicit surface: `f = "formula"` with `bounds`, or a named `surface`
+/// (`"torus"` with `major_radius` and `minor_radius`, or `"heart"`), whose
+/// bounds default to a box that holds it.
+fn read_implicit(ctx: &Ctx, f: &mut Fields) -> Result<Implicit> {
+    let surface = f.choice("surface", &["torus", "heart"])?;
+    let formula_value = f.get("f");
+    let (formula, default_bounds) = match (surface, formula_value) {
+        (Some(_), Some(v)) => {
+            return Err(ctx.error(
+                v.span(),
+                format!("{} has both `f` and `surface`; give one", f.what),
+            ));
+        }
+        (None, None) => return Err(f.require("f").map(|_| ()).unwrap_err()),
+        (None, Some(v)) => (ctx.string(v)?.to_string(), None),
+        (Some("torus"), None) => {
+            let major = f.checked("major_radius", None, |x| x > 0.0, "a positive radius")?;
+            let minor = f.checked("minor_radius", None, |x| x > 0.0, "a positive radius")?;
+            let (a, b) = (major + minor, minor);
+            (
+                torus_formula(major as f64, minor as f64),
+                Some(Aabb::new(Vec3::new(-a, -a, -b), Vec3::new(a, a, b))),
+            )
+        }
+        (Some(_), None) => (
+            HEART_FORMULA.to_string(),
+            Some(Aabb::new(
+                Vec3::from_array(HEART_BOUNDS[0]),
+                Vec3::from_array(HEART_BOUNDS[1]),
+            )),
+        ),
+    };
+    let bounds = match (f.opt("bounds", read_bounds)?, default_bounds) {
+        (Some(b), _) | (None, Some(b)) => b,
+        (None, None) => return Err(f.require("bounds").map(|_| ()).unwrap_err()),
+    };
+    let transform = f
+        .opt("transform", read_transform)?
+        .unwrap_or(Transform::IDENTITY);
+    Implicit::new(&formula, bounds, transform).map_err(|e| match (e, formula_value) {
+        (ImplicitError::Formula(e), Some(v)) => {
+            formula_error(ctx, v, &formula, e.column, &e.message)
+        }
+        (e, _) => ctx.error(f.span.clone(), format!("in the formula of {}: {e}", f.what)),
+    })
+}
+
+/// Locates an error at `column` (1-based, in characters) of the formula in the
+/// string value `v`: exactly, when the string is written without escapes;
+/// otherwise at the string, naming the column.
+fn formula_error(ctx: &Ctx, v: &Value, formula: &str, column: usize, message: &str) -> SceneError {
+    let span = v.span();
+    let raw = &ctx.text[span.clone()];
+    let quote = if raw.starts_with("\"\"\"") || raw.starts_with("'''") {
+        3
+    } else {
+        1
+    };
+    let body = raw.get(quote..).unwrap_or("");
+    if body.starts_with(formula) {
+        let offset = formula
+            .char_indices()
+            .nth(column - 1)
+            .map_or(formula.len(), |(i, _)| i);
+        let at = span.start + quote + offset;
+        ctx.error(at..at, format!("in formula: {message}"))
+    } else {
+        ctx.error(span, format!("in formula, column {column}: {message}"))
+    }
+}
+
 fn read_object(
     ctx: &Ctx,
     v: &Value,
@@ -624,10 +741,11 @@ fn read_object(
             }
             Shape::Cuboid(Cuboid::new(min, max))
         }
+        "implicit" => Shape::Implicit(Box::new(read_implicit(ctx, &mut f)?)),
         other => {
             return Err(ctx.error(
                 kind.span(),
-                format!("unknown shape `{other}`; expected one of: sphere, plane, box"),
+                format!("unknown shape `{other}`; expected one of: sphere, plane, box, implicit"),
             ));
         }
     };

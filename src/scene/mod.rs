@@ -14,7 +14,8 @@ pub use load::{BUILTIN_WHITTED, SceneError, SceneFile, load_scene_file, parse_sc
 pub use material::{Fresnel, Material, MaterialKind, fresnel_dielectric, reflect, refract};
 pub use texture::{CheckerMode, Texture};
 
-use crate::geometry::{Shape, SurfacePoint};
+pub use crate::geometry::TraceCounters;
+use crate::geometry::{Shape, ShapeHit, SurfacePoint};
 use crate::math::{Color, Ray, Vec3};
 
 /// A shape with a material (an index into [`Scene::materials`]).
@@ -24,13 +25,12 @@ pub struct Object {
     pub material: u32,
 }
 
-/// The closest hit of a ray: its parameter, the object, and the part of the
-/// object's shape.
+/// The closest hit of a ray: the object and the shape's hit record.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
     pub t: f32,
     pub object: u32,
-    pub prim: u32,
+    pub shape: ShapeHit,
 }
 
 /// Everything shading needs to know about a hit point.
@@ -44,13 +44,6 @@ pub struct SurfaceInteraction {
     pub material: u32,
     pub object: u32,
     pub prim: u32,
-}
-
-/// Counts of work done by scene queries, summed per tile by the renderer.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct TraceCounters {
-    /// Ray–shape intersection tests.
-    pub intersection_tests: u64,
 }
 
 #[derive(Clone, Debug)]
@@ -104,12 +97,12 @@ impl Scene {
         let mut ray = *ray;
         let mut closest = None;
         for (i, object) in self.objects.iter().enumerate() {
-            if let Some(h) = object.shape.intersect(&ray) {
+            if let Some(h) = object.shape.intersect(&ray, counters) {
                 ray.t_max = h.t;
                 closest = Some(Hit {
                     t: h.t,
                     object: i as u32,
-                    prim: h.prim,
+                    shape: h,
                 });
             }
         }
@@ -121,20 +114,14 @@ impl Scene {
     #[inline]
     pub fn surface(&self, ray: &Ray, hit: &Hit) -> SurfaceInteraction {
         let object = &self.objects[hit.object as usize];
-        let SurfacePoint { p, p_err, n } = object.shape.surface(
-            ray,
-            &crate::geometry::ShapeHit {
-                t: hit.t,
-                prim: hit.prim,
-            },
-        );
+        let SurfacePoint { p, p_err, n } = object.shape.surface(ray, &hit.shape);
         SurfaceInteraction {
             p,
             p_err,
             n,
             material: object.material,
             object: hit.object,
-            prim: hit.prim,
+            prim: hit.shape.prim,
         }
     }
 
@@ -153,7 +140,7 @@ impl Scene {
     pub fn occluded(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
         for object in &self.objects {
             counters.intersection_tests += 1;
-            if object.shape.intersect(ray).is_some() {
+            if object.shape.intersect(ray, counters).is_some() {
                 return true;
             }
         }
@@ -174,23 +161,19 @@ impl Scene {
         for (object, &opaque) in self.objects.iter().zip(&self.opaque) {
             counters.intersection_tests += 1;
             if opaque {
-                if object.shape.intersect(ray).is_some() {
+                if object.shape.intersect(ray, counters).is_some() {
                     return Color::ZERO;
                 }
-                continue;
-            }
-            let c = object.shape.crossings(ray);
-            if c.count == 0 && c.inside_length == 0.0 {
                 continue;
             }
             if let MaterialKind::Dielectric { ior, absorption } =
                 self.materials[object.material as usize].kind
             {
-                for &cos in &c.cos[..c.count as usize] {
+                let inside = object.shape.crossings(ray, counters, &mut |cos| {
                     tr *= fresnel_dielectric(cos, 1.0, ior).transmittance;
-                }
-                if c.inside_length > 0.0 && absorption != Color::ZERO {
-                    tr *= (-absorption * c.inside_length).exp();
+                });
+                if inside > 0.0 && absorption != Color::ZERO {
+                    tr *= (-absorption * inside).exp();
                 }
             }
         }
