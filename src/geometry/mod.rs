@@ -73,6 +73,17 @@ impl Shape {
         }
     }
 
+    /// Whether the shape meets the ray's segment at all (any-hit, for shadow
+    /// rays; cheaper than [`Shape::intersect`] where finding the closest hit
+    /// costs more than finding one).
+    #[inline]
+    pub fn occludes(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
+        match self {
+            Shape::Implicit(s) => s.occludes(ray, counters),
+            _ => self.intersect(ray, counters).is_some(),
+        }
+    }
+
     /// The surface at a hit returned by [`Shape::intersect`] for the same ray.
     #[inline]
     pub fn surface(&self, ray: &Ray, hit: &ShapeHit) -> SurfacePoint {

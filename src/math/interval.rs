@@ -2,9 +2,9 @@
 //!
 //! Every operation returns an interval that contains the result of the
 //! operation on every pair of points of its operands: each computed bound is
-//! rounded one ulp outwards (arithmetic is correctly rounded, so the true bound
-//! lies within that ulp), two ulps for library functions (`exp`, `ln`, `sin`,
-//! `cos`, whose results are within one ulp).
+//! moved at least one ulp outwards (arithmetic is correctly rounded, so the
+//! true bound lies within that ulp), twice for library functions (`exp`, `ln`,
+//! `sin`, `cos`, whose results are within one ulp).
 //!
 //! Functions defined only on part of the reals (`sqrt`, `ln`, real powers) are
 //! evaluated on the part of the interval inside their domain; an interval
@@ -18,14 +18,25 @@ pub struct Interval {
     pub hi: f64,
 }
 
+/// At least one ulp of `x` (`ulp(x) ≤ |x|·2⁻⁵²` for normal numbers, the
+/// smallest subnormal below them), computed without branches: `next_up` and
+/// `next_down` branch on sign and zero, which costs more than the arithmetic.
 #[inline]
-fn down(x: f64) -> f64 {
-    x.next_down()
+fn ulp_bound(x: f64) -> f64 {
+    (x.abs() * f64::EPSILON).max(f64::from_bits(1))
 }
 
+/// `x` rounded down by at least one ulp (round-to-nearest of `x − δ` with
+/// `δ ≥ ulp(x)` is at most `next_down(x)`).
+#[inline]
+fn down(x: f64) -> f64 {
+    x - ulp_bound(x)
+}
+
+/// `x` rounded up by at least one ulp.
 #[inline]
 fn up(x: f64) -> f64 {
-    x.next_up()
+    x + ulp_bound(x)
 }
 
 impl Interval {
@@ -357,6 +368,30 @@ mod tests {
         assert!(r.lo <= 4.0 && r.lo > 3.99 && r.hi >= 9.0);
         let r = iv(-2.0, 1.0).powi(3);
         assert!(r.lo <= -8.0 && r.hi >= 1.0 && r.hi < 1.01);
+    }
+
+    #[test]
+    fn outward_rounding_moves_at_least_one_ulp() {
+        for x in [
+            1.0,
+            -1.0,
+            0.0,
+            -0.0,
+            3.0e-310,
+            -3.0e-310,
+            1e300,
+            -1e300,
+            0.1,
+            -7.0,
+            2.0,
+            -2.0,
+            f64::MIN_POSITIVE,
+        ] {
+            assert!(up(x) >= x.next_up(), "{x}");
+            assert!(down(x) <= x.next_down(), "{x}");
+        }
+        assert_eq!(up(f64::INFINITY), f64::INFINITY);
+        assert_eq!(down(f64::NEG_INFINITY), f64::NEG_INFINITY);
     }
 
     #[test]

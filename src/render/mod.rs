@@ -92,6 +92,9 @@ pub fn render_with<I: Integrator>(
         rays_total,
         rays_per_second: rays_total as f64 / seconds_render.max(1e-9),
         intersection_tests: counters.intersection_tests,
+        implicit_evaluations: counters.implicit_evaluations,
+        implicit_evaluations_per_ray: counters.implicit_evaluations as f64
+            / rays_total.max(1) as f64,
         nan_pixels: counters.nan_pixels,
         bad_samples: counters.bad_samples,
     };
@@ -188,6 +191,7 @@ fn render_tile<I: Integrator>(
         TileCounters {
             rays: counters.rays,
             intersection_tests: counters.trace.intersection_tests,
+            implicit_evaluations: counters.trace.implicit_evaluations,
             bad_samples,
             nan_pixels,
         },

@@ -22,6 +22,7 @@ impl RayCounts {
 pub struct TileCounters {
     pub rays: RayCounts,
     pub intersection_tests: u64,
+    pub implicit_evaluations: u64,
     /// Samples whose radiance was NaN or infinite (replaced by black).
     pub bad_samples: u64,
     /// Pixels with at least one such sample.
@@ -35,6 +36,7 @@ impl std::ops::AddAssign for TileCounters {
         self.rays.reflection += o.rays.reflection;
         self.rays.refraction += o.rays.refraction;
         self.intersection_tests += o.intersection_tests;
+        self.implicit_evaluations += o.implicit_evaluations;
         self.bad_samples += o.bad_samples;
         self.nan_pixels += o.nan_pixels;
     }
@@ -57,6 +59,10 @@ pub struct RenderStats {
     pub rays_per_second: f64,
     /// Ray–shape intersection tests, all ray kinds.
     pub intersection_tests: u64,
+    /// Interval evaluations of implicit surfaces' formulas (root isolation).
+    pub implicit_evaluations: u64,
+    /// `implicit_evaluations` per ray (all kinds).
+    pub implicit_evaluations_per_ray: f64,
     /// Pixels that had a NaN or infinite sample (each such sample counts as black).
     pub nan_pixels: u64,
     pub bad_samples: u64,

@@ -140,7 +140,7 @@ impl Scene {
     pub fn occluded(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
         for object in &self.objects {
             counters.intersection_tests += 1;
-            if object.shape.intersect(ray, counters).is_some() {
+            if object.shape.occludes(ray, counters) {
                 return true;
             }
         }
@@ -161,7 +161,7 @@ impl Scene {
         for (object, &opaque) in self.objects.iter().zip(&self.opaque) {
             counters.intersection_tests += 1;
             if opaque {
-                if object.shape.intersect(ray, counters).is_some() {
+                if object.shape.occludes(ray, counters) {
                     return Color::ZERO;
                 }
                 continue;

@@ -145,6 +145,21 @@ impl Implicit {
         })
     }
 
+    /// Whether anything of the surface lies on the ray's segment (any-hit, for
+    /// shadow rays: no refinement of the root).
+    pub fn occludes(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
+        if !self.world_bounds.hit_by(ray, ray.inv_d()) {
+            return false;
+        }
+        let s = self.object_ray(ray);
+        // The f32 segment end, as an f64 bound that excludes t_max itself.
+        let t_max = (ray.t_max as f64).next_down();
+        match self.clip(&s, ray.t_min as f64, t_max) {
+            Some((t0, t1)) => s.has_root(t0, t1, &mut counters.implicit_evaluations),
+            None => false,
+        }
+    }
+
     /// The point, rebuilt from the f64 root, and the normal: the gradient of
     /// `f` by automatic differentiation, taken to world space by the inverse
     /// transpose. Where the gradient vanishes (the heart's cusps and the curve
@@ -236,24 +251,25 @@ impl Implicit {
         };
         let d_world = ray.d.as_dvec3();
         let step = roots::RELATIVE_TOLERANCE * (t1 - t0).max(1e-300) * 4.0;
-        let (mut start, mut inside) = (t0, 0.0);
-        let mut boundaries = vec![t0];
-        while let Some(r) = s.first_root(start, t1, &mut counters.implicit_evaluations) {
+        let (mut start, mut previous, mut inside) = (t0, t0, 0.0);
+        let mut count = 0;
+        let mut add_gap = |a: f64, b: f64| {
+            if s.f(0.5 * (a + b)) < 0.0 {
+                inside += b - a;
+            }
+        };
+        while count < 64
+            && let Some(r) = s.first_root(start, t1, &mut counters.implicit_evaluations)
+        {
             let n = self.transform.normal_to_world * self.gradient(s.o + s.d * r.t);
             let cos = n.normalize_or_zero().dot(d_world.normalize()).abs();
             crossing(cos as f32);
-            boundaries.push(r.t);
+            add_gap(previous, r.t);
+            previous = r.t;
             start = r.t + r.t_err.max(step);
-            if boundaries.len() > 64 {
-                break;
-            }
+            count += 1;
         }
-        boundaries.push(t1);
-        for w in boundaries.windows(2) {
-            if s.f(0.5 * (w[0] + w[1])) < 0.0 {
-                inside += w[1] - w[0];
-            }
-        }
+        add_gap(previous, t1);
         (inside * d_world.length()) as f32
     }
 }

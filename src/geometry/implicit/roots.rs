@@ -9,8 +9,10 @@
 //!    derivative `F′(T)`. If `0 ∉ F′(T)`, `f` is strictly monotonic on `T` and
 //!    has a root there iff its endpoint values differ in sign; that root is
 //!    then refined by safeguarded Newton–bisection to a few ulps.
-//! 3. Otherwise `T` is halved, down to a width of `RELATIVE_TOLERANCE` of the
-//!    search range. A piece that small on which `F` still contains 0 either
+//! 3. Otherwise `T` is split at its midpoint `m`, and the interval Newton
+//!    step removes a gap around `m` that provably holds no root (from a
+//!    rigorous enclosure of `f(m)` and `F′(T)`), down to a width of
+//!    `RELATIVE_TOLERANCE` of the search range. A piece that small on which `F` still contains 0 either
 //!    shows a sign change (a root of odd multiplicity, e.g. at a singular point
 //!    where the gradient vanishes: refined by bisection), or not: then `f`
 //!    only touches zero there (a root of even multiplicity, a ray tangent to
@@ -78,14 +80,35 @@ impl RaySearch<'_> {
         (r.v, r.d[0])
     }
 
+    /// A rigorous enclosure of `f(o + t·d)` at the single parameter `t`
+    /// (the point itself is enclosed with outward rounding).
+    #[inline]
+    fn enclose_at(&self, t: f64) -> Interval {
+        let t = Interval::point(t);
+        let v = |k: usize| Interval::point(self.o[k]) + t * Interval::point(self.d[k]);
+        self.tape.eval(v(0), v(1), v(2))
+    }
+
     /// The smallest root in `[t0, t1]`; `evaluations` counts the interval
     /// evaluations.
     pub fn first_root(&self, t0: f64, t1: f64, evaluations: &mut u64) -> Option<Root> {
+        self.search(t0, t1, evaluations, true)
+    }
+
+    /// Whether `[t0, t1]` holds a root (for shadow rays): the same search,
+    /// stopped as soon as a piece is known to hold one, without refining it.
+    pub fn has_root(&self, t0: f64, t1: f64, evaluations: &mut u64) -> bool {
+        self.search(t0, t1, evaluations, false).is_some()
+    }
+
+    /// With `refine == false`, the root returned is only known to lie in
+    /// `[t, t + t_err]`.
+    fn search(&self, t0: f64, t1: f64, evaluations: &mut u64, refine: bool) -> Option<Root> {
         if t0 > t1 || t0.is_nan() || t1.is_nan() {
             return None;
         }
         let tolerance = RELATIVE_TOLERANCE * (t1 - t0).max(t0.abs().max(t1.abs()) * 1e-3);
-        let mut stack = [(0.0, 0.0); MAX_DEPTH + 2];
+        let mut stack = [(0.0, 0.0); MAX_DEPTH * 2 + 2];
         stack[0] = (t0, t1);
         let mut len = 1;
         while len > 0 {
@@ -103,7 +126,11 @@ impl RaySearch<'_> {
                     return Some(Root { t: a, t_err: 0.0 });
                 }
                 if fa.signum() != fb.signum() && !fb.is_nan() {
-                    return Some(self.refine(a, b, fa));
+                    return Some(if refine {
+                        self.refine(a, b, fa)
+                    } else {
+                        Root { t: a, t_err: b - a }
+                    });
                 }
                 continue;
             }
@@ -123,22 +150,58 @@ impl RaySearch<'_> {
                 // f touches zero (a root of even multiplicity).
                 return Some(Root { t: m, t_err: b - a });
             }
-            stack[len] = (m, b);
-            stack[len + 1] = (a, m);
-            len += 2;
+            // Interval Newton with extended division (Hansen, "Global
+            // Optimization Using Interval Analysis", §9.6): every t with
+            // f(t) = 0 satisfies f(m) + (t − m)·f′(ξ) = 0 for some ξ ∈ [a, b],
+            // so with f(m) ≥ v > 0 and F′ = [d₋, d₊] a root lies left of m only
+            // if t ≤ m − v/d₊ (d₊ > 0), right of m only if t ≥ m + v/(−d₋)
+            // (d₋ < 0); symmetrically for f(m) < 0. The gap around m holds no
+            // root. With v = 0 (or F(m) ∋ 0) this is plain bisection.
+            *evaluations += 1;
+            let fm = self.enclose_at(m);
+            let (mut left_end, mut right_start) = (m, m);
+            if fm.lo > 0.0 || fm.hi < 0.0 {
+                let (v, d_left, d_right) = if fm.lo > 0.0 {
+                    (fm.lo, df.hi, -df.lo)
+                } else {
+                    (-fm.hi, -df.lo, df.hi)
+                };
+                // Rounded towards m, so the gap is never too wide.
+                left_end = if d_left > 0.0 {
+                    (m - v / d_left).next_up()
+                } else {
+                    a
+                };
+                right_start = if d_right > 0.0 {
+                    (m + v / d_right).next_down()
+                } else {
+                    b
+                };
+            }
+            if right_start < b {
+                stack[len] = (right_start.max(a), b);
+                len += 1;
+            }
+            if left_end > a {
+                stack[len] = (a, left_end.min(b));
+                len += 1;
+            }
         }
         None
     }
 
     /// Safeguarded Newton–Raphson on a bracket `[a, b]` with `f(a) = fa` and
-    /// `f(b)` of the opposite sign: Newton steps while they stay inside the
-    /// bracket and halve it at least every other step, bisection otherwise
-    /// (as `rtsafe`, Press et al., "Numerical Recipes", §9.4). Stops when the
-    /// bracket is a few ulps wide.
+    /// `f(b)` of the opposite sign (`rtsafe`, Press et al., "Numerical
+    /// Recipes", §9.4): a Newton step when it lands inside the bracket and at
+    /// least halves the previous step (quadratic convergence near a simple
+    /// root), a bisection otherwise (linear, guaranteed, also at multiple
+    /// roots). Every evaluation shrinks the bracket. Stops when a step is a few
+    /// ulps of `t`; the error bound is that step, or the bracket if smaller.
     fn refine(&self, mut a: f64, mut b: f64, fa: f64) -> Root {
         let a_negative = fa < 0.0;
         let mut t = 0.5 * (a + b);
-        let mut last_width = b - a;
+        let mut step = b - a;
+        let mut last_step = step;
         for _ in 0..200 {
             let (ft, dft) = self.f_dt(t);
             if ft == 0.0 {
@@ -149,21 +212,24 @@ impl RaySearch<'_> {
             } else {
                 b = t;
             }
-            let width = b - a;
-            if width <= 4.0 * f64::EPSILON * a.abs().max(b.abs()) || width.is_nan() {
+            let newton = t - ft / dft;
+            let previous = last_step;
+            last_step = step;
+            if newton > a && newton < b && (newton - t).abs() * 2.0 <= previous.abs() {
+                step = newton - t;
+                t = newton;
+            } else {
+                step = 0.5 * (b - a);
+                t = a + step;
+            }
+            let tolerance = 4.0 * f64::EPSILON * t.abs();
+            if step.abs() <= tolerance || b - a <= tolerance || step.is_nan() {
                 break;
             }
-            let newton = t - ft / dft;
-            t = if newton > a && newton < b && width < 0.75 * last_width {
-                newton
-            } else {
-                0.5 * (a + b)
-            };
-            last_width = width;
         }
         Root {
-            t: 0.5 * (a + b),
-            t_err: b - a,
+            t,
+            t_err: (2.0 * step.abs()).min(b - a),
         }
     }
 }

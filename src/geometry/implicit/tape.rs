@@ -338,7 +338,16 @@ impl Scalar for f64 {
     }
     #[inline]
     fn powi(self, n: i32) -> Self {
-        f64::powi(self, n)
+        // Repeated squaring, inlined: `f64::powi` is a library call.
+        let (mut base, mut k, mut acc) = (self, n.unsigned_abs(), 1.0);
+        while k > 0 {
+            if k & 1 == 1 {
+                acc *= base;
+            }
+            k >>= 1;
+            base *= base;
+        }
+        if n < 0 { 1.0 / acc } else { acc }
     }
     #[inline]
     fn powf(self, e: Self) -> Self {
