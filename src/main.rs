@@ -218,10 +218,20 @@ fn summary(scene_name: &str, s: &RenderStats) -> String {
     } else {
         " No NaN or infinite samples.".to_string()
     };
+    let implicit = if s.implicit_evaluations > 0 {
+        format!(
+            ", {} interval evaluations of implicit surfaces ({:.1} per ray, {:.1} per root search)",
+            group(s.implicit_evaluations),
+            s.implicit_evaluations_per_ray,
+            s.implicit_evaluations_per_search
+        )
+    } else {
+        String::new()
+    };
     format!(
         "Rendered {scene_name} at {}×{}, {} spp, {} integrator (max depth {}), {} threads. \
          Load {:.1} ms, render {:.1} ms. Rays: {} camera, {} shadow, {} reflection, {} refraction \
-         ({} in all, {:.1} M rays/s). {} intersection tests.{nan}",
+         ({} in all, {:.1} M rays/s). {} intersection tests{implicit}.{nan}",
         s.width,
         s.height,
         s.spp,

@@ -36,6 +36,8 @@ pub struct ShapeHit {
 pub struct TraceCounters {
     /// Ray–shape intersection tests.
     pub intersection_tests: u64,
+    /// Root searches along rays that entered an implicit surface's bounds.
+    pub implicit_searches: u64,
     /// Interval evaluations of implicit surfaces' formulas.
     pub implicit_evaluations: u64,
 }

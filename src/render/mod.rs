@@ -92,7 +92,10 @@ pub fn render_with<I: Integrator>(
         rays_total,
         rays_per_second: rays_total as f64 / seconds_render.max(1e-9),
         intersection_tests: counters.intersection_tests,
+        implicit_searches: counters.implicit_searches,
         implicit_evaluations: counters.implicit_evaluations,
+        implicit_evaluations_per_search: counters.implicit_evaluations as f64
+            / counters.implicit_searches.max(1) as f64,
         implicit_evaluations_per_ray: counters.implicit_evaluations as f64
             / rays_total.max(1) as f64,
         nan_pixels: counters.nan_pixels,
@@ -191,6 +194,7 @@ fn render_tile<I: Integrator>(
         TileCounters {
             rays: counters.rays,
             intersection_tests: counters.trace.intersection_tests,
+            implicit_searches: counters.trace.implicit_searches,
             implicit_evaluations: counters.trace.implicit_evaluations,
             bad_samples,
             nan_pixels,

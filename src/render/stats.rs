@@ -22,6 +22,7 @@ impl RayCounts {
 pub struct TileCounters {
     pub rays: RayCounts,
     pub intersection_tests: u64,
+    pub implicit_searches: u64,
     pub implicit_evaluations: u64,
     /// Samples whose radiance was NaN or infinite (replaced by black).
     pub bad_samples: u64,
@@ -36,6 +37,7 @@ impl std::ops::AddAssign for TileCounters {
         self.rays.reflection += o.rays.reflection;
         self.rays.refraction += o.rays.refraction;
         self.intersection_tests += o.intersection_tests;
+        self.implicit_searches += o.implicit_searches;
         self.implicit_evaluations += o.implicit_evaluations;
         self.bad_samples += o.bad_samples;
         self.nan_pixels += o.nan_pixels;
@@ -59,8 +61,12 @@ pub struct RenderStats {
     pub rays_per_second: f64,
     /// Ray–shape intersection tests, all ray kinds.
     pub intersection_tests: u64,
+    /// Root searches on implicit surfaces (rays that entered their bounds).
+    pub implicit_searches: u64,
     /// Interval evaluations of implicit surfaces' formulas (root isolation).
     pub implicit_evaluations: u64,
+    /// `implicit_evaluations` per root search.
+    pub implicit_evaluations_per_search: f64,
     /// `implicit_evaluations` per ray (all kinds).
     pub implicit_evaluations_per_ray: f64,
     /// Pixels that had a NaN or infinite sample (each such sample counts as black).

@@ -135,6 +135,7 @@ impl Implicit {
         }
         let s = self.object_ray(ray);
         let (t0, t1) = self.clip(&s, ray.t_min as f64, ray.t_max as f64)?;
+        counters.implicit_searches += 1;
         let Root { t, .. } = s.first_root(t0, t1, &mut counters.implicit_evaluations)?;
         let t32 = t as f32;
         ray.contains(t32).then_some(ShapeHit {
@@ -155,7 +156,10 @@ impl Implicit {
         // The f32 segment end, as an f64 bound that excludes t_max itself.
         let t_max = (ray.t_max as f64).next_down();
         match self.clip(&s, ray.t_min as f64, t_max) {
-            Some((t0, t1)) => s.has_root(t0, t1, &mut counters.implicit_evaluations),
+            Some((t0, t1)) => {
+                counters.implicit_searches += 1;
+                s.has_root(t0, t1, &mut counters.implicit_evaluations)
+            }
             None => false,
         }
     }
@@ -249,6 +253,7 @@ impl Implicit {
         let Some((t0, t1)) = self.clip(&s, ray.t_min as f64, ray.t_max as f64) else {
             return 0.0;
         };
+        counters.implicit_searches += 1;
         let d_world = ray.d.as_dvec3();
         let step = roots::RELATIVE_TOLERANCE * (t1 - t0).max(1e-300) * 4.0;
         let (mut start, mut previous, mut inside) = (t0, t0, 0.0);
