@@ -138,12 +138,13 @@ impl Scene {
     /// first object found).
     #[inline]
     pub fn occluded(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
-        for object in &self.objects {
-            counters.intersection_tests += 1;
+        for (i, object) in self.objects.iter().enumerate() {
             if object.shape.occludes(ray, counters) {
+                counters.intersection_tests += i as u64 + 1;
                 return true;
             }
         }
+        counters.intersection_tests += self.objects.len() as u64;
         false
     }
 
@@ -158,10 +159,10 @@ impl Scene {
     /// not rendered, as in Whitted's ray tracer.
     pub fn transmittance(&self, ray: &Ray, counters: &mut TraceCounters) -> Color {
         let mut tr = Color::ONE;
-        for (object, &opaque) in self.objects.iter().zip(&self.opaque) {
-            counters.intersection_tests += 1;
+        for (i, (object, &opaque)) in self.objects.iter().zip(&self.opaque).enumerate() {
             if opaque {
                 if object.shape.occludes(ray, counters) {
+                    counters.intersection_tests += i as u64 + 1;
                     return Color::ZERO;
                 }
                 continue;
@@ -169,14 +170,17 @@ impl Scene {
             if let MaterialKind::Dielectric { ior, absorption } =
                 self.materials[object.material as usize].kind
             {
+                let mut passed = 1.0f32;
                 let inside = object.shape.crossings(ray, counters, &mut |cos| {
-                    tr *= fresnel_dielectric(cos, 1.0, ior).transmittance;
+                    passed *= fresnel_dielectric(cos, 1.0, ior).transmittance;
                 });
+                tr *= passed;
                 if inside > 0.0 && absorption != Color::ZERO {
                     tr *= (-absorption * inside).exp();
                 }
             }
         }
+        counters.intersection_tests += self.objects.len() as u64;
         tr
     }
 }

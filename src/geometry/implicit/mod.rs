@@ -129,6 +129,8 @@ impl Implicit {
     /// The first root in `[t_min, t_max)`. `ShapeHit::u` carries the part of
     /// the f64 root lost in rounding `t` to f32, so that [`Implicit::surface`]
     /// can rebuild the point to f64 precision.
+    // Out of line: keeps the dispatch of the cheap shapes small in the hot loop.
+    #[inline(never)]
     pub fn intersect(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
         if !self.world_bounds.hit_by(ray, ray.inv_d()) {
             return None;
@@ -148,6 +150,8 @@ impl Implicit {
 
     /// Whether anything of the surface lies on the ray's segment (any-hit, for
     /// shadow rays: no refinement of the root).
+    // Out of line: keeps the dispatch of the cheap shapes small in the hot loop.
+    #[inline(never)]
     pub fn occludes(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
         if !self.world_bounds.hit_by(ray, ray.inv_d()) {
             return false;
@@ -170,6 +174,8 @@ impl Implicit {
     /// along its "equator", where `f = g³` near the surface), it gives no
     /// direction; the normal is then that of the plane through the hit and two
     /// nearby hits of rays parallel to this one (see [`Implicit::fallback_normal`]).
+    // Out of line: keeps the dispatch of the cheap shapes small in the hot loop.
+    #[inline(never)]
     pub fn surface(&self, ray: &Ray, hit: &ShapeHit) -> SurfacePoint {
         let s = self.object_ray(ray);
         let t = hit.t as f64 + hit.u as f64;
@@ -240,6 +246,8 @@ impl Implicit {
 
     /// Calls `crossing` with `|cos θ|` at every root on the ray's segment and
     /// returns the length of the segment inside (`f < 0`).
+    // Out of line: keeps the dispatch of the cheap shapes small in the hot loop.
+    #[inline(never)]
     pub fn crossings(
         &self,
         ray: &Ray,
