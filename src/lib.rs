@@ -14,6 +14,7 @@
 //! assert_eq!(stats.rays.camera, 32 * 24);
 //! ```
 
+pub mod accel;
 pub mod geometry;
 pub mod math;
 pub mod render;

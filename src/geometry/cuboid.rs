@@ -71,6 +71,7 @@ impl Cuboid {
             p,
             p_err: gamma(5) * p.abs(),
             n,
+            ns: n,
         }
     }
 

@@ -8,14 +8,20 @@
 
 mod cuboid;
 pub mod implicit;
+mod mesh;
 mod plane;
 mod sphere;
+pub mod testgen;
+mod triangle;
 
 pub use cuboid::Cuboid;
 pub use implicit::Implicit;
+pub use mesh::{Mesh, MeshDataError, MeshInstance};
 pub use plane::Plane;
 pub use sphere::Sphere;
+pub use triangle::{TriangleHit, intersect_mt, intersect_watertight};
 
+use crate::accel::TraversalCounters;
 use crate::math::{Aabb, Ray, Vec3};
 use glam::Vec2;
 
@@ -40,6 +46,8 @@ pub struct TraceCounters {
     pub implicit_searches: u64,
     /// Interval evaluations of implicit surfaces' formulas.
     pub implicit_evaluations: u64,
+    /// BVH nodes visited and triangles tested inside meshes.
+    pub bvh: TraversalCounters,
 }
 
 /// The surface at a hit point.
@@ -52,6 +60,9 @@ pub struct SurfacePoint {
     /// Unit geometric normal, pointing out of closed shapes (for a plane: its
     /// stated normal), whichever side the ray came from.
     pub n: Vec3,
+    /// Unit shading normal: interpolated from vertex normals on smooth meshes,
+    /// `n` elsewhere.
+    pub ns: Vec3,
 }
 
 /// The closed set of shapes, dispatched by `match` (no vtable in the hot loop).
@@ -61,6 +72,7 @@ pub enum Shape {
     Plane(Plane),
     Cuboid(Cuboid),
     Implicit(Box<Implicit>),
+    Mesh(MeshInstance),
 }
 
 impl Shape {
@@ -74,6 +86,7 @@ impl Shape {
             Shape::Plane(s) => s.intersect(ray),
             Shape::Cuboid(s) => s.intersect(ray),
             Shape::Implicit(s) => s.intersect(ray, counters),
+            Shape::Mesh(s) => s.intersect(ray, counters),
         }
     }
 
@@ -84,6 +97,7 @@ impl Shape {
     pub fn occludes(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
         match self {
             Shape::Implicit(s) => s.occludes(ray, counters),
+            Shape::Mesh(s) => s.occludes(ray, counters),
             _ => self.intersect(ray, counters).is_some(),
         }
     }
@@ -96,6 +110,7 @@ impl Shape {
             Shape::Plane(s) => s.surface(ray, hit),
             Shape::Cuboid(s) => s.surface(ray, hit),
             Shape::Implicit(s) => s.surface(ray, hit),
+            Shape::Mesh(s) => s.surface(ray, hit),
         }
     }
 
@@ -108,6 +123,7 @@ impl Shape {
             Shape::Cuboid(s) => s.uv(p, prim),
             // World x and z: a projection from above.
             Shape::Implicit(_) => Vec2::new(p.x, p.z),
+            Shape::Mesh(s) => s.uv(p, prim),
         }
     }
 
@@ -127,6 +143,7 @@ impl Shape {
             Shape::Plane(s) => s.crossings(ray, crossing),
             Shape::Cuboid(s) => s.crossings(ray, crossing),
             Shape::Implicit(s) => s.crossings(ray, counters, crossing),
+            Shape::Mesh(s) => s.crossings(ray, counters, crossing),
         }
     }
 
@@ -137,6 +154,7 @@ impl Shape {
             Shape::Plane(_) => Aabb::new(Vec3::NEG_INFINITY, Vec3::INFINITY),
             Shape::Cuboid(s) => s.bounds,
             Shape::Implicit(s) => s.bounds(),
+            Shape::Mesh(s) => s.bounds(),
         }
     }
 }

@@ -64,6 +64,7 @@ impl Plane {
             p,
             p_err,
             n: self.normal,
+            ns: self.normal,
         }
     }
 

@@ -93,7 +93,7 @@ impl Sphere {
         let p_local = n * self.radius;
         let p = self.center + p_local;
         let p_err = gamma(5) * p_local.abs() + gamma(2) * p.abs();
-        SurfacePoint { p, p_err, n }
+        SurfacePoint { p, p_err, n, ns: n }
     }
 
     /// Spherical coordinates scaled to [0, 1]: `u = φ/2π` around the y axis

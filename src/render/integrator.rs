@@ -32,7 +32,7 @@ impl Integrator for Raycast {
         };
         let si = scene.surface(ray, &hit);
         let wo = -ray.d.normalize();
-        let n_facing = face_forward(si.n, wo);
+        let n_facing = face_forward(si.ns, face_forward(si.n, wo));
         local_shading(scene, &si, wo, n_facing, counters)
     }
 }
@@ -75,7 +75,8 @@ impl Whitted {
         let d = ray.d.normalize();
         let wo = -d;
         let front = d.dot(si.n) < 0.0;
-        let n_facing = if front { si.n } else { -si.n };
+        // The shading normal, on the side of the geometric normal the ray came from.
+        let n_facing = face_forward(si.ns, if front { si.n } else { -si.n });
         let mut l = local_shading(scene, &si, wo, n_facing, counters);
         let material = &scene.materials[si.material as usize];
 

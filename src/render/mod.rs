@@ -96,6 +96,10 @@ pub fn render_with<I: Integrator>(
         implicit_evaluations: counters.implicit_evaluations,
         implicit_evaluations_per_search: counters.implicit_evaluations as f64
             / counters.implicit_searches.max(1) as f64,
+        bvh_nodes_visited: counters.bvh_nodes_visited,
+        triangle_tests: counters.triangle_tests,
+        bvh_nodes_visited_per_ray: counters.bvh_nodes_visited as f64 / rays_total.max(1) as f64,
+        triangle_tests_per_ray: counters.triangle_tests as f64 / rays_total.max(1) as f64,
         implicit_evaluations_per_ray: counters.implicit_evaluations as f64
             / rays_total.max(1) as f64,
         nan_pixels: counters.nan_pixels,
@@ -196,6 +200,8 @@ fn render_tile<I: Integrator>(
             intersection_tests: counters.trace.intersection_tests,
             implicit_searches: counters.trace.implicit_searches,
             implicit_evaluations: counters.trace.implicit_evaluations,
+            bvh_nodes_visited: counters.trace.bvh.nodes_visited,
+            triangle_tests: counters.trace.bvh.primitive_tests,
             bad_samples,
             nan_pixels,
         },

@@ -24,6 +24,8 @@ pub struct TileCounters {
     pub intersection_tests: u64,
     pub implicit_searches: u64,
     pub implicit_evaluations: u64,
+    pub bvh_nodes_visited: u64,
+    pub triangle_tests: u64,
     /// Samples whose radiance was NaN or infinite (replaced by black).
     pub bad_samples: u64,
     /// Pixels with at least one such sample.
@@ -39,6 +41,8 @@ impl std::ops::AddAssign for TileCounters {
         self.intersection_tests += o.intersection_tests;
         self.implicit_searches += o.implicit_searches;
         self.implicit_evaluations += o.implicit_evaluations;
+        self.bvh_nodes_visited += o.bvh_nodes_visited;
+        self.triangle_tests += o.triangle_tests;
         self.bad_samples += o.bad_samples;
         self.nan_pixels += o.nan_pixels;
     }
@@ -69,6 +73,13 @@ pub struct RenderStats {
     pub implicit_evaluations_per_search: f64,
     /// `implicit_evaluations` per ray (all kinds).
     pub implicit_evaluations_per_ray: f64,
+    /// BVH nodes visited inside meshes, all rays.
+    pub bvh_nodes_visited: u64,
+    /// Ray–triangle tests, all rays.
+    pub triangle_tests: u64,
+    /// `bvh_nodes_visited` and `triangle_tests` per ray (all kinds).
+    pub bvh_nodes_visited_per_ray: f64,
+    pub triangle_tests_per_ray: f64,
     /// Pixels that had a NaN or infinite sample (each such sample counts as black).
     pub nan_pixels: u64,
     pub bad_samples: u64,

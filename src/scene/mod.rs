@@ -41,6 +41,8 @@ pub struct SurfaceInteraction {
     pub p_err: Vec3,
     /// Unit geometric normal (outward for closed shapes).
     pub n: Vec3,
+    /// Unit shading normal (interpolated on smooth meshes, else `n`).
+    pub ns: Vec3,
     pub material: u32,
     pub object: u32,
     pub prim: u32,
@@ -114,11 +116,12 @@ impl Scene {
     #[inline]
     pub fn surface(&self, ray: &Ray, hit: &Hit) -> SurfaceInteraction {
         let object = &self.objects[hit.object as usize];
-        let SurfacePoint { p, p_err, n } = object.shape.surface(ray, &hit.shape);
+        let SurfacePoint { p, p_err, n, ns } = object.shape.surface(ray, &hit.shape);
         SurfaceInteraction {
             p,
             p_err,
             n,
+            ns,
             material: object.material,
             object: hit.object,
             prim: hit.shape.prim,

@@ -195,6 +195,7 @@ impl Implicit {
             p: p32,
             p_err,
             n: n_world.as_vec3a(),
+            ns: n_world.as_vec3a(),
         }
     }
 

@@ -1,0 +1,601 @@
+//! Bounding volume hierarchy: binned SAH build, parallel with rayon, flattened
+//! into a compact depth-first node array; closest-hit traversal nearer child
+//! first with pruning by the current closest `t`, and any-hit traversal that
+//! stops at the first hit.
+//!
+//! Build: Wald, "On fast Construction of SAH-based Bounding Volume
+//! Hierarchies" (2007): primitives are binned by centroid into `BINS` buckets
+//! along each axis, and the split minimising the surface area heuristic
+//! `C = C_trav + (A_L·N_L + A_R·N_R)/A` is taken, or a leaf when that is
+//! cheaper. Subtrees above `PARALLEL_THRESHOLD` primitives are built on both
+//! sides of a `rayon::join`, and binning of large nodes is split into chunks
+//! that run in parallel.
+
+use crate::math::{Aabb, Ray, Vec3};
+use rayon::prelude::*;
+
+const BINS: usize = 16;
+/// Largest leaf.
+const MAX_LEAF: usize = 8;
+/// Cost of a traversal step relative to one primitive test.
+const TRAVERSAL_COST: f32 = 1.0;
+/// Nodes with more primitives than this build their children in parallel.
+const PARALLEL_THRESHOLD: usize = 4096;
+/// Nodes with more primitives than this bin them in parallel chunks.
+const PARALLEL_BINNING: usize = 1 << 16;
+
+/// A node of the flattened tree (32 bytes). Interior nodes (`count == 0`)
+/// have their first child right after them and the second at `offset`;
+/// leaves hold primitives `offset .. offset + count` of [`Bvh::indices`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub struct BvhNode {
+    pub min: [f32; 3],
+    pub offset: u32,
+    pub max: [f32; 3],
+    pub count: u32,
+}
+
+impl BvhNode {
+    fn new(b: &Aabb, offset: u32, count: u32) -> Self {
+        BvhNode {
+            min: b.min.to_array(),
+            offset,
+            max: b.max.to_array(),
+            count,
+        }
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            min: Vec3::from_array(self.min),
+            max: Vec3::from_array(self.max),
+        }
+    }
+
+    /// The slab test against this node's box, with the ray's interval
+    /// `[t_min, t_max)`: the entry parameter if the box is hit.
+    #[inline(always)]
+    fn hit(&self, o: Vec3, inv_d: Vec3, t_min: f32, t_max: f32) -> Option<f32> {
+        // `inv_d` is finite (see `safe_inv_d`), so no product is NaN.
+        let t0 = (Vec3::from_array(self.min) - o) * inv_d;
+        let t1 = (Vec3::from_array(self.max) - o) * inv_d;
+        let near = t0.min(t1);
+        let far = t0.max(t1);
+        let t_enter = near.max_element().max(t_min);
+        let t_exit = far.min_element().min(t_max);
+        (t_enter <= t_exit).then_some(t_enter)
+    }
+}
+
+/// A BVH over primitives given by their boxes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Bvh {
+    pub nodes: Vec<BvhNode>,
+    /// Primitive indices in leaf order, or empty once the owner has
+    /// reordered its primitives into leaf order (leaves then index them
+    /// directly).
+    pub indices: Vec<u32>,
+}
+
+/// `1/d` with infinities (zero direction components) replaced by ±1e30, so
+/// that the slab test's `(plane − o)·(1/d)` is never `0·∞ = NaN` when the
+/// origin lies on a slab plane; for any other origin the product is still
+/// huge with the right sign, as with ∞ (obvhs `safe_inverse`).
+#[inline(always)]
+fn safe_inv_d(ray: &Ray) -> Vec3 {
+    ray.d.recip().clamp(Vec3::splat(-1e30), Vec3::splat(1e30))
+}
+
+/// Work done by traversals.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraversalCounters {
+    pub nodes_visited: u64,
+    pub primitive_tests: u64,
+}
+
+#[derive(Clone, Copy)]
+struct Bin {
+    bounds: Aabb,
+    count: u32,
+}
+
+const EMPTY_BIN: Bin = Bin {
+    bounds: Aabb::EMPTY,
+    count: 0,
+};
+
+fn area(b: &Aabb) -> f32 {
+    let e = (b.max - b.min).max(Vec3::ZERO);
+    2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+}
+
+/// A subtree under construction: nodes with offsets local to it.
+struct Subtree {
+    nodes: Vec<BvhNode>,
+}
+
+impl Bvh {
+    /// Builds a BVH over primitives with the given boxes and centroids.
+    /// Primitives with empty or non-finite boxes are left out.
+    pub fn build(bounds: &[Aabb], centroids: &[Vec3]) -> Bvh {
+        assert_eq!(bounds.len(), centroids.len(), "one centroid per box");
+        let mut indices: Vec<u32> = (0..bounds.len() as u32)
+            .filter(|&i| {
+                let b = &bounds[i as usize];
+                b.min.is_finite() && b.max.is_finite() && b.min.cmple(b.max).all()
+            })
+            .collect();
+        if indices.is_empty() {
+            return Bvh::default();
+        }
+        let tree = build_node(bounds, centroids, &mut indices, 0);
+        Bvh {
+            nodes: tree.nodes,
+            indices,
+        }
+    }
+
+    /// The primitive at leaf position `k`.
+    #[inline(always)]
+    fn prim(&self, k: u32) -> u32 {
+        if self.indices.is_empty() {
+            k
+        } else {
+            self.indices[k as usize]
+        }
+    }
+
+    /// The root's box (empty for an empty tree).
+    pub fn bounds(&self) -> Aabb {
+        self.nodes.first().map_or(Aabb::EMPTY, BvhNode::bounds)
+    }
+
+    /// Bytes of nodes and indices.
+    pub fn bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<BvhNode>() + self.indices.len() * 4
+    }
+
+    /// Closest hit: visits leaves front to back; `test(prim, t_max)` returns
+    /// the hit's `t` if the primitive is hit before `t_max`. Returns the
+    /// closest `(prim, t)`.
+    #[inline]
+    pub fn closest(
+        &self,
+        ray: &Ray,
+        counters: &mut TraversalCounters,
+        mut test: impl FnMut(u32, f32) -> Option<f32>,
+    ) -> Option<(u32, f32)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let inv_d = safe_inv_d(ray);
+        let mut t_max = ray.t_max;
+        let mut best = None;
+        let mut stack = [0u32; 64];
+        let mut len = 0;
+        let mut node = 0usize;
+        let (mut visited, mut tests) = (1u64, 0u64);
+        if self.nodes[0].hit(ray.o, inv_d, ray.t_min, t_max).is_none() {
+            counters.nodes_visited += 1;
+            return None;
+        }
+        loop {
+            let n = &self.nodes[node];
+            if n.count > 0 {
+                for k in n.offset..n.offset + n.count {
+                    let prim = self.prim(k);
+                    tests += 1;
+                    if let Some(t) = test(prim, t_max) {
+                        t_max = t;
+                        best = Some((prim, t));
+                    }
+                }
+            } else {
+                let (a, b) = (node + 1, n.offset as usize);
+                visited += 2;
+                let ha = self.nodes[a].hit(ray.o, inv_d, ray.t_min, t_max);
+                let hb = self.nodes[b].hit(ray.o, inv_d, ray.t_min, t_max);
+                match (ha, hb) {
+                    (Some(ta), Some(tb)) => {
+                        let (near, far) = if ta <= tb { (a, b) } else { (b, a) };
+                        stack[len] = far as u32;
+                        len += 1;
+                        node = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = a;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = b;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            // Pop, skipping nodes now beyond the closest hit.
+            loop {
+                if len == 0 {
+                    counters.nodes_visited += visited;
+                    counters.primitive_tests += tests;
+                    return best;
+                }
+                len -= 1;
+                node = stack[len] as usize;
+                if self.nodes[node]
+                    .hit(ray.o, inv_d, ray.t_min, t_max)
+                    .is_some()
+                {
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Any hit: stops at the first primitive for which `test(prim)` is true.
+    #[inline]
+    pub fn any(
+        &self,
+        ray: &Ray,
+        counters: &mut TraversalCounters,
+        mut test: impl FnMut(u32) -> bool,
+    ) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let inv_d = safe_inv_d(ray);
+        let mut stack = [0u32; 64];
+        let mut len = 1;
+        let (mut visited, mut tests) = (0u64, 0u64);
+        let mut found = false;
+        'outer: while len > 0 {
+            len -= 1;
+            let node = stack[len] as usize;
+            let n = &self.nodes[node];
+            visited += 1;
+            if n.hit(ray.o, inv_d, ray.t_min, ray.t_max).is_none() {
+                continue;
+            }
+            if n.count > 0 {
+                for k in n.offset..n.offset + n.count {
+                    let prim = self.prim(k);
+                    tests += 1;
+                    if test(prim) {
+                        found = true;
+                        break 'outer;
+                    }
+                }
+            } else {
+                stack[len] = n.offset;
+                stack[len + 1] = node as u32 + 1;
+                len += 2;
+            }
+        }
+        counters.nodes_visited += visited;
+        counters.primitive_tests += tests;
+        found
+    }
+
+    /// Checks the structural invariants: children inside parents, every
+    /// primitive in exactly one leaf, inside its leaf's box. Returns a
+    /// description of the first violation.
+    pub fn validate(&self, bounds: &[Aabb]) -> Result<(), String> {
+        if self.nodes.is_empty() {
+            return if self.indices.is_empty() {
+                Ok(())
+            } else {
+                Err("indices without nodes".into())
+            };
+        }
+        let mut seen = vec![false; bounds.len()];
+        let mut stack = vec![0usize];
+        let contains = |outer: &Aabb, inner: &Aabb| {
+            inner.min.cmpge(outer.min).all() && inner.max.cmple(outer.max).all()
+        };
+        while let Some(i) = stack.pop() {
+            let n = self.nodes.get(i).ok_or(format!("node {i} out of range"))?;
+            let b = n.bounds();
+            if n.count > 0 {
+                let end = (n.offset + n.count) as usize;
+                if end
+                    > if self.indices.is_empty() {
+                        bounds.len()
+                    } else {
+                        self.indices.len()
+                    }
+                {
+                    return Err(format!("leaf {i} out of range"));
+                }
+                for k in n.offset..n.offset + n.count {
+                    let p = self.prim(k) as usize;
+                    if std::mem::replace(&mut seen[p], true) {
+                        return Err(format!("primitive {p} in two leaves"));
+                    }
+                    if !contains(&b, &bounds[p]) {
+                        return Err(format!("primitive {p} outside leaf {i}"));
+                    }
+                }
+            } else {
+                for c in [i + 1, n.offset as usize] {
+                    let child = self
+                        .nodes
+                        .get(c)
+                        .ok_or(format!("child {c} of {i} out of range"))?;
+                    if c <= i || !contains(&b, &child.bounds()) {
+                        return Err(format!("child {c} of node {i} misplaced or outside it"));
+                    }
+                    stack.push(c);
+                }
+            }
+        }
+        let valid = bounds
+            .iter()
+            .filter(|b| b.min.is_finite() && b.max.is_finite() && b.min.cmple(b.max).all())
+            .count();
+        if seen.iter().filter(|&&s| s).count() != valid {
+            return Err("some primitives are in no leaf".into());
+        }
+        Ok(())
+    }
+}
+
+/// Bins `indices` by centroid along every axis of `cb` (the centroids' box).
+fn bin(bounds: &[Aabb], centroids: &[Vec3], indices: &[u32], cb: &Aabb) -> [[Bin; BINS]; 3] {
+    let scale = Vec3::splat(BINS as f32) / (cb.max - cb.min).max(Vec3::splat(f32::MIN_POSITIVE));
+    let one = |chunk: &[u32]| {
+        let mut bins = [[EMPTY_BIN; BINS]; 3];
+        for &p in chunk {
+            let c = centroids[p as usize];
+            let k = ((c - cb.min) * scale)
+                .as_uvec3()
+                .min(glam::UVec3::splat(BINS as u32 - 1));
+            for axis in 0..3 {
+                let bin = &mut bins[axis][k[axis] as usize];
+                bin.bounds = bin.bounds.union(&bounds[p as usize]);
+                bin.count += 1;
+            }
+        }
+        bins
+    };
+    if indices.len() < PARALLEL_BINNING {
+        return one(indices);
+    }
+    indices.par_chunks(PARALLEL_BINNING / 4).map(one).reduce(
+        || [[EMPTY_BIN; BINS]; 3],
+        |mut a, b| {
+            for axis in 0..3 {
+                for k in 0..BINS {
+                    a[axis][k].bounds = a[axis][k].bounds.union(&b[axis][k].bounds);
+                    a[axis][k].count += b[axis][k].count;
+                }
+            }
+            a
+        },
+    )
+}
+
+fn node_bounds(bounds: &[Aabb], centroids: &[Vec3], indices: &[u32]) -> (Aabb, Aabb) {
+    let one = |chunk: &[u32]| {
+        chunk.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), &p| {
+            let cp = centroids[p as usize];
+            (
+                b.union(&bounds[p as usize]),
+                c.union(&Aabb { min: cp, max: cp }),
+            )
+        })
+    };
+    if indices.len() < PARALLEL_BINNING {
+        return one(indices);
+    }
+    indices.par_chunks(PARALLEL_BINNING / 4).map(one).reduce(
+        || (Aabb::EMPTY, Aabb::EMPTY),
+        |a, b| (a.0.union(&b.0), a.1.union(&b.1)),
+    )
+}
+
+/// Builds the subtree over `indices` (which it reorders into leaf order);
+/// leaf offsets are relative to `first`, the position of `indices[0]` in the
+/// whole index array.
+fn build_node(bounds: &[Aabb], centroids: &[Vec3], indices: &mut [u32], first: usize) -> Subtree {
+    let (b, cb) = node_bounds(bounds, centroids, indices);
+    let n = indices.len();
+    let leaf = |indices: &[u32]| Subtree {
+        nodes: vec![BvhNode::new(&b, first as u32, indices.len() as u32)],
+    };
+    if n <= 2 || cb.max.cmple(cb.min).all() && n <= MAX_LEAF {
+        return leaf(indices);
+    }
+    // Find the cheapest split over all axes and bin boundaries.
+    let bins = bin(bounds, centroids, indices, &cb);
+    let mut best = (f32::INFINITY, 0usize, 0usize);
+    for (axis, bins) in bins.iter().enumerate() {
+        if cb.max[axis] <= cb.min[axis] {
+            continue;
+        }
+        let mut right_area = [0.0f32; BINS];
+        let mut right_count = [0u32; BINS];
+        let (mut acc, mut count) = (Aabb::EMPTY, 0);
+        for k in (1..BINS).rev() {
+            acc = acc.union(&bins[k].bounds);
+            count += bins[k].count;
+            right_area[k] = area(&acc);
+            right_count[k] = count;
+        }
+        let (mut acc, mut count) = (Aabb::EMPTY, 0);
+        for k in 1..BINS {
+            acc = acc.union(&bins[k - 1].bounds);
+            count += bins[k - 1].count;
+            let cost = area(&acc) * count as f32 + right_area[k] * right_count[k] as f32;
+            if count > 0 && right_count[k] > 0 && cost < best.0 {
+                best = (cost, axis, k);
+            }
+        }
+    }
+    let leaf_cost = n as f32;
+    let split_cost = TRAVERSAL_COST + best.0 / area(&b).max(f32::MIN_POSITIVE);
+    if best.0.is_infinite() || (split_cost >= leaf_cost && n <= MAX_LEAF) {
+        if n <= MAX_LEAF {
+            return leaf(indices);
+        }
+        // No useful SAH split (e.g. all centroids equal): split the list in half.
+        let mid = n / 2;
+        return split(bounds, centroids, indices, first, b, mid);
+    }
+    let (axis, k) = (best.1, best.2);
+    let scale = BINS as f32 / (cb.max[axis] - cb.min[axis]);
+    let mid = partition(indices, |p| {
+        let c = centroids[p as usize][axis];
+        (((c - cb.min[axis]) * scale) as usize).min(BINS - 1) < k
+    });
+    let mid = if mid == 0 || mid == n { n / 2 } else { mid };
+    split(bounds, centroids, indices, first, b, mid)
+}
+
+fn split(
+    bounds: &[Aabb],
+    centroids: &[Vec3],
+    indices: &mut [u32],
+    first: usize,
+    b: Aabb,
+    mid: usize,
+) -> Subtree {
+    let n = indices.len();
+    let (left_ix, right_ix) = indices.split_at_mut(mid);
+    let (left, right) = if n > PARALLEL_THRESHOLD {
+        rayon::join(
+            || build_node(bounds, centroids, left_ix, first),
+            || build_node(bounds, centroids, right_ix, first + mid),
+        )
+    } else {
+        (
+            build_node(bounds, centroids, left_ix, first),
+            build_node(bounds, centroids, right_ix, first + mid),
+        )
+    };
+    // Depth-first layout: [this, left subtree, right subtree].
+    let right_start = 1 + left.nodes.len();
+    let mut nodes = Vec::with_capacity(right_start + right.nodes.len());
+    nodes.push(BvhNode::new(&b, right_start as u32, 0));
+    let shift = |n: &BvhNode, by: usize| {
+        let mut n = *n;
+        if n.count == 0 {
+            n.offset += by as u32;
+        }
+        n
+    };
+    nodes.extend(left.nodes.iter().map(|n| shift(n, 1)));
+    nodes.extend(right.nodes.iter().map(|n| shift(n, right_start)));
+    Subtree { nodes }
+}
+
+/// Moves the elements satisfying `left` to the front; returns their count.
+fn partition(v: &mut [u32], left: impl Fn(u32) -> bool) -> usize {
+    let mut i = 0;
+    for j in 0..v.len() {
+        if left(v[j]) {
+            v.swap(i, j);
+            i += 1;
+        }
+    }
+    i
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn boxes(n: usize, seed: u64) -> (Vec<Aabb>, Vec<Vec3>) {
+        let mut rng = crate::render::Pcg32::new(seed, 1);
+        let mut b = Vec::new();
+        for _ in 0..n {
+            let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
+            let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.3;
+            b.push(Aabb::new(c - e, c + e));
+        }
+        let c = b.iter().map(|b| (b.min + b.max) * 0.5).collect();
+        (b, c)
+    }
+
+    #[test]
+    fn empty_and_single_primitive() {
+        let bvh = Bvh::build(&[], &[]);
+        assert!(bvh.nodes.is_empty());
+        assert!(
+            bvh.closest(
+                &Ray::new(Vec3::ZERO, Vec3::X),
+                &mut Default::default(),
+                |_, _| Some(1.0)
+            )
+            .is_none()
+        );
+        let b = [Aabb::new(Vec3::ONE, Vec3::splat(2.0))];
+        let bvh = Bvh::build(&b, &[Vec3::splat(1.5)]);
+        assert_eq!(bvh.nodes.len(), 1);
+        bvh.validate(&b).unwrap();
+    }
+
+    #[test]
+    fn ray_on_a_slab_plane_with_zero_direction_component() {
+        let b = [Aabb::new(Vec3::ZERO, Vec3::ONE)];
+        let bvh = Bvh::build(&b, &[Vec3::splat(0.5)]);
+        // Origin on the plane x = 0, moving along z: the boundary counts as inside.
+        let ray = Ray::new(Vec3::new(0.0, 0.5, -1.0), Vec3::Z);
+        assert!(bvh.any(&ray, &mut Default::default(), |_| true));
+        let ray = Ray::new(Vec3::new(-1e-3, 0.5, -1.0), Vec3::Z);
+        assert!(!bvh.any(&ray, &mut Default::default(), |_| true));
+    }
+
+    #[test]
+    fn all_centroids_equal_still_builds_small_leaves() {
+        let b = vec![Aabb::new(Vec3::ZERO, Vec3::ONE); 1000];
+        let c = vec![Vec3::splat(0.5); 1000];
+        let bvh = Bvh::build(&b, &c);
+        bvh.validate(&b).unwrap();
+        assert!(bvh.nodes.iter().all(|n| n.count as usize <= MAX_LEAF));
+    }
+
+    #[test]
+    fn non_finite_boxes_are_left_out() {
+        let mut b = vec![Aabb::new(Vec3::ZERO, Vec3::ONE); 10];
+        b[3] = Aabb {
+            min: Vec3::splat(f32::NAN),
+            max: Vec3::ONE,
+        };
+        b[5] = Aabb::EMPTY;
+        let c: Vec<Vec3> = b.iter().map(|b| (b.min + b.max) * 0.5).collect();
+        let bvh = Bvh::build(&b, &c);
+        bvh.validate(&b).unwrap();
+        assert_eq!(bvh.indices.len(), 8);
+    }
+
+    #[test]
+    fn large_random_build_is_valid_and_traversal_matches_brute_force() {
+        let (b, c) = boxes(20_000, 3);
+        let bvh = Bvh::build(&b, &c);
+        bvh.validate(&b).unwrap();
+        let mut rng = crate::render::Pcg32::new(9, 2);
+        for _ in 0..2000 {
+            let o =
+                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - Vec3::splat(2.0);
+            let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - Vec3::splat(0.5);
+            let ray = Ray::new(o, d);
+            let inv = ray.inv_d();
+            // "Hit" = the ray's entry into the primitive's box.
+            let t_of = |p: u32| b[p as usize].slab(ray.o, inv).map(|h| h.t_enter.max(0.0));
+            let brute = (0..b.len() as u32)
+                .filter_map(|p| t_of(p).map(|t| (p, t)))
+                .min_by(|x, y| x.1.total_cmp(&y.1).then(x.0.cmp(&y.0)));
+            let mut counters = TraversalCounters::default();
+            let got = bvh.closest(&ray, &mut counters, |p, t_max| {
+                t_of(p).filter(|&t| t < t_max)
+            });
+            assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
+            assert_eq!(
+                bvh.any(&ray, &mut counters, |p| t_of(p).is_some()),
+                brute.is_some()
+            );
+        }
+    }
+}

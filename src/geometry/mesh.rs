@@ -1,0 +1,396 @@
+//! Triangle meshes: flat arrays owned by the mesh, indexed by its own BVH, and
+//! instances (a shared mesh plus a transform).
+
+use super::triangle::{intersect_mt, intersect_watertight};
+use super::{ShapeHit, SurfacePoint, TraceCounters};
+use crate::accel::Bvh;
+use crate::math::{Aabb, Ray, Transform, Vec3, gamma};
+use glam::{Affine3A, Mat3A, Vec2};
+use rayon::prelude::*;
+use std::sync::Arc;
+
+/// A triangle mesh. Triangles are stored in the BVH's leaf order, so a leaf's
+/// triangles are contiguous (the BVH keeps no index array).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    pub positions: Vec<glam::Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Per-vertex normals, or empty (flat shading).
+    pub normals: Vec<glam::Vec3>,
+    /// Per-vertex texture coordinates, or empty.
+    pub uvs: Vec<Vec2>,
+    pub bvh: Bvh,
+}
+
+/// Why a mesh could not be built from its arrays.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum MeshDataError {
+    #[error("triangle {triangle} refers to vertex {vertex}, but there are only {count} vertices")]
+    IndexOutOfRange {
+        triangle: usize,
+        vertex: u32,
+        count: usize,
+    },
+    #[error("vertex {vertex} has a non-finite coordinate")]
+    NonFinite { vertex: usize },
+    #[error("{what} has {found} entries for {count} vertices")]
+    AttributeCount {
+        what: &'static str,
+        found: usize,
+        count: usize,
+    },
+}
+
+impl Mesh {
+    /// Checks the arrays, builds the BVH (binned SAH, in parallel) and
+    /// reorders the triangles into its leaf order. `normals` and `uvs` are
+    /// per vertex or empty.
+    pub fn new(
+        positions: Vec<glam::Vec3>,
+        triangles: Vec<[u32; 3]>,
+        normals: Vec<glam::Vec3>,
+        uvs: Vec<Vec2>,
+    ) -> Result<Mesh, MeshDataError> {
+        let count = positions.len();
+        if let Some(vertex) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(MeshDataError::NonFinite { vertex });
+        }
+        for (what, found) in [
+            ("the normal array", normals.len()),
+            ("the uv array", uvs.len()),
+        ] {
+            if found != 0 && found != count {
+                return Err(MeshDataError::AttributeCount { what, found, count });
+            }
+        }
+        if let Some((triangle, &vertex)) = triangles
+            .par_iter()
+            .enumerate()
+            .find_map_first(|(i, t)| t.iter().find(|&&v| v as usize >= count).map(|v| (i, v)))
+        {
+            return Err(MeshDataError::IndexOutOfRange {
+                triangle,
+                vertex,
+                count,
+            });
+        }
+        let (bounds, centroids): (Vec<Aabb>, Vec<Vec3>) = triangles
+            .par_iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| Vec3::from(positions[i as usize]));
+                let bb = Aabb::new(a.min(b).min(c), a.max(b).max(c));
+                (bb, (bb.min + bb.max) * 0.5)
+            })
+            .unzip();
+        let mut bvh = Bvh::build(&bounds, &centroids);
+        let triangles = bvh
+            .indices
+            .par_iter()
+            .map(|&i| triangles[i as usize])
+            .collect();
+        bvh.indices = Vec::new();
+        Ok(Mesh {
+            positions,
+            triangles,
+            normals,
+            uvs,
+            bvh,
+        })
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        self.bvh.bounds()
+    }
+
+    /// Bytes of vertex, index and BVH data.
+    pub fn bytes(&self) -> usize {
+        self.positions.len() * 12
+            + self.triangles.len() * 12
+            + self.normals.len() * 12
+            + self.uvs.len() * 8
+            + self.bvh.bytes()
+    }
+
+    #[inline(always)]
+    fn vertices(&self, prim: u32) -> (Vec3, Vec3, Vec3) {
+        let [a, b, c] = self.triangles[prim as usize];
+        let p = &self.positions;
+        (
+            p[a as usize].into(),
+            p[b as usize].into(),
+            p[c as usize].into(),
+        )
+    }
+
+    /// Closest hit of an object-space ray: `(prim, t, b1, b2)`.
+    #[inline]
+    pub fn intersect_object(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
+        let mut bary = (0.0, 0.0);
+        let (prim, t) = self.bvh.closest(ray, &mut counters.bvh, |prim, t_max| {
+            let (v0, v1, v2) = self.vertices(prim);
+            intersect_mt(ray.o, ray.d, v0, v1, v2, ray.t_min, t_max).map(|h| {
+                bary = (h.b1, h.b2);
+                h.t
+            })
+        })?;
+        Some(ShapeHit {
+            t,
+            prim,
+            u: bary.0,
+            v: bary.1,
+        })
+    }
+
+    /// Whether an object-space ray's segment meets the mesh (any hit).
+    #[inline]
+    pub fn occludes_object(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
+        self.bvh.any(ray, &mut counters.bvh, |prim| {
+            let (v0, v1, v2) = self.vertices(prim);
+            intersect_mt(ray.o, ray.d, v0, v1, v2, ray.t_min, ray.t_max).is_some()
+        })
+    }
+
+    /// Calls `hit(t, cos θ)` for every triangle the object-space ray's segment
+    /// crosses (watertight test), in no particular order; the second value says
+    /// whether a hit lies exactly on an edge or vertex.
+    fn all_hits(
+        &self,
+        ray: &Ray,
+        counters: &mut TraceCounters,
+        mut hit: impl FnMut(f32, f32, bool),
+    ) {
+        let d_len = ray.d.length();
+        self.bvh.any(ray, &mut counters.bvh, |prim| {
+            let (v0, v1, v2) = self.vertices(prim);
+            if let Some((h, on_edge)) =
+                intersect_watertight(ray.o, ray.d, v0, v1, v2, ray.t_min, ray.t_max)
+            {
+                let n = (v1 - v0).cross(v2 - v0).normalize_or_zero();
+                hit(h.t, (n.dot(ray.d) / d_len).abs(), on_edge);
+            }
+            false
+        });
+    }
+
+    /// Whether `p` lies inside the closed mesh, by the parity of the number of
+    /// triangles a ray from `p` crosses (Jordan curve theorem in 3D). Crossings
+    /// are counted with the watertight test; if a ray passes exactly through an
+    /// edge or vertex (where it might count one crossing twice or a touching
+    /// one once), it is recast in another direction. The answer is meaningless
+    /// for a mesh that is not closed.
+    pub fn contains(&self, p: Vec3) -> bool {
+        // Directions with irrational-looking components: no axis-aligned
+        // grazing of axis-aligned geometry.
+        const DIRECTIONS: [[f32; 3]; 6] = [
+            [0.5377, 0.8244, 0.1768],
+            [-0.3123, 0.4417, -0.8411],
+            [0.7072, -0.6124, 0.3535],
+            [-0.8660, -0.1729, 0.4692],
+            [0.1209, -0.9103, -0.3958],
+            [0.6305, 0.2112, -0.7470],
+        ];
+        let mut votes = 0;
+        for d in DIRECTIONS {
+            let ray = Ray::new(p, Vec3::from_array(d));
+            let (mut count, mut ambiguous) = (0u32, false);
+            self.all_hits(&ray, &mut TraceCounters::default(), |_, _, on_edge| {
+                count += 1;
+                ambiguous |= on_edge;
+            });
+            if !ambiguous {
+                return count % 2 == 1;
+            }
+            votes += (count % 2) as i32 * 2 - 1;
+        }
+        votes > 0
+    }
+
+    /// Surface at an object-space hit: the point rebuilt from barycentrics
+    /// (error bound γ(7)·Σ|bᵢvᵢ|, pbrt-v4 §6.8.4), the geometric normal
+    /// `(v1 − v0) × (v2 − v0)` (outward for counter-clockwise winding), and the
+    /// shading normal interpolated from vertex normals when the mesh has them.
+    pub fn surface_object(&self, hit: &ShapeHit) -> SurfacePoint {
+        let (v0, v1, v2) = self.vertices(hit.prim);
+        let (b1, b2) = (hit.u, hit.v);
+        let b0 = (1.0 - b1 - b2).max(0.0);
+        let p = b0 * v0 + b1 * v1 + b2 * v2;
+        let p_err = gamma(7) * ((b0 * v0).abs() + (b1 * v1).abs() + (b2 * v2).abs());
+        let n = (v1 - v0).cross(v2 - v0).normalize_or_zero();
+        let ns = if self.normals.is_empty() {
+            n
+        } else {
+            let [a, b, c] = self.triangles[hit.prim as usize];
+            let nm = &self.normals;
+            let s = Vec3::from(nm[a as usize]) * b0
+                + Vec3::from(nm[b as usize]) * b1
+                + Vec3::from(nm[c as usize]) * b2;
+            s.try_normalize().unwrap_or(n)
+        };
+        SurfacePoint { p, p_err, n, ns }
+    }
+
+    /// Texture coordinates at an object-space point of triangle `prim`:
+    /// interpolated from the mesh's uvs, or the barycentrics `(b1, b2)`.
+    pub fn uv_object(&self, p: Vec3, prim: u32) -> Vec2 {
+        let (v0, v1, v2) = self.vertices(prim);
+        let n = (v1 - v0).cross(v2 - v0);
+        let area = n.length_squared();
+        if area == 0.0 {
+            return Vec2::ZERO;
+        }
+        let b1 = (p - v0).cross(v2 - v0).dot(n) / area;
+        let b2 = (v1 - v0).cross(p - v0).dot(n) / area;
+        if self.uvs.is_empty() {
+            return Vec2::new(b1, b2);
+        }
+        let [a, b, c] = self.triangles[prim as usize];
+        self.uvs[a as usize] * (1.0 - b1 - b2)
+            + self.uvs[b as usize] * b1
+            + self.uvs[c as usize] * b2
+    }
+}
+
+/// A mesh placed in the world: a shared mesh and, optionally, a transform.
+/// A thousand instances of one mesh cost the memory of one mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshInstance {
+    pub mesh: Arc<Mesh>,
+    transform: Option<Box<InstanceTransform>>,
+    world_bounds: Aabb,
+}
+
+/// f32 copies of an instance's transform, for the hot path.
+#[derive(Clone, Debug, PartialEq)]
+struct InstanceTransform {
+    world_from_object: Affine3A,
+    object_from_world: Affine3A,
+    normal_to_world: Mat3A,
+    /// |linear part|, for carrying error bounds to world space.
+    abs_linear: Mat3A,
+}
+
+impl MeshInstance {
+    pub fn new(mesh: Arc<Mesh>, transform: Option<&Transform>) -> Self {
+        let transform = transform.filter(|t| **t != Transform::IDENTITY).map(|t| {
+            let w = Affine3A::from_mat3_translation(
+                t.world_from_object.matrix3.as_mat3(),
+                t.world_from_object.translation.as_vec3(),
+            );
+            let m = w.matrix3;
+            Box::new(InstanceTransform {
+                world_from_object: w,
+                object_from_world: Affine3A::from_mat3_translation(
+                    t.object_from_world.matrix3.as_mat3(),
+                    t.object_from_world.translation.as_vec3(),
+                ),
+                normal_to_world: Mat3A::from(t.normal_to_world.as_mat3()),
+                abs_linear: Mat3A::from_cols(m.x_axis.abs(), m.y_axis.abs(), m.z_axis.abs()),
+            })
+        });
+        let b = mesh.bounds();
+        let world_bounds = match &transform {
+            None => b,
+            Some(x) => (0..8).fold(Aabb::EMPTY, |acc, i| {
+                let c = Vec3::new(
+                    if i & 1 == 0 { b.min.x } else { b.max.x },
+                    if i & 2 == 0 { b.min.y } else { b.max.y },
+                    if i & 4 == 0 { b.min.z } else { b.max.z },
+                );
+                let w = x.world_from_object.transform_point3a(c);
+                acc.union(&Aabb::new(w, w))
+            }),
+        };
+        MeshInstance {
+            mesh,
+            transform,
+            world_bounds,
+        }
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        self.world_bounds
+    }
+
+    #[inline(always)]
+    fn object_ray(&self, ray: &Ray) -> Ray {
+        match &self.transform {
+            None => *ray,
+            Some(x) => Ray {
+                o: x.object_from_world.transform_point3a(ray.o),
+                d: x.object_from_world.transform_vector3a(ray.d),
+                ..*ray
+            },
+        }
+    }
+
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
+        self.mesh.intersect_object(&self.object_ray(ray), counters)
+    }
+
+    #[inline]
+    pub fn occludes(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
+        self.mesh.occludes_object(&self.object_ray(ray), counters)
+    }
+
+    pub fn surface(&self, _ray: &Ray, hit: &ShapeHit) -> SurfacePoint {
+        let s = self.mesh.surface_object(hit);
+        match &self.transform {
+            None => s,
+            Some(x) => {
+                let p = x.world_from_object.transform_point3a(s.p);
+                SurfacePoint {
+                    p,
+                    // The object-space bound carried through |M|, plus the
+                    // rounding of the transform itself (pbrt-v4 §6.8.6).
+                    p_err: x.abs_linear * s.p_err
+                        + gamma(3)
+                            * (x.abs_linear * s.p.abs() + x.world_from_object.translation.abs()),
+                    n: (x.normal_to_world * s.n).normalize_or_zero(),
+                    ns: (x.normal_to_world * s.ns).normalize_or_zero(),
+                }
+            }
+        }
+    }
+
+    pub fn uv(&self, p: Vec3, prim: u32) -> Vec2 {
+        let p = match &self.transform {
+            None => p,
+            Some(x) => x.object_from_world.transform_point3a(p),
+        };
+        self.mesh.uv_object(p, prim)
+    }
+
+    /// See [`super::Shape::crossings`]. The length inside assumes the segment
+    /// starts outside the mesh (true of shadow rays from other surfaces).
+    pub fn crossings(
+        &self,
+        ray: &Ray,
+        counters: &mut TraceCounters,
+        crossing: &mut impl FnMut(f32),
+    ) -> f32 {
+        let r = self.object_ray(ray);
+        let mut ts = [0f32; 32];
+        let mut n = 0;
+        self.mesh.all_hits(&r, counters, |t, cos, _| {
+            crossing(cos);
+            if n < ts.len() {
+                ts[n] = t;
+                n += 1;
+            }
+        });
+        let ts = &mut ts[..n];
+        ts.sort_unstable_by(f32::total_cmp);
+        let inside: f32 = ts.chunks_exact(2).map(|p| p[1] - p[0]).sum();
+        inside * ray.d.length()
+    }
+
+    /// Whether the world-space point `p` lies inside the (closed) mesh.
+    pub fn contains(&self, p: Vec3) -> bool {
+        let p = match &self.transform {
+            None => p,
+            Some(x) => x.object_from_world.transform_point3a(p),
+        };
+        self.mesh.contains(p)
+    }
+}

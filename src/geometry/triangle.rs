@@ -1,0 +1,234 @@
+//! Ray–triangle intersection.
+
+use crate::math::{Vec3, gamma};
+
+/// A ray–triangle hit: the ray parameter and the barycentric coordinates of
+/// `v1` and `v2` (that of `v0` is `1 − b1 − b2`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleHit {
+    pub t: f32,
+    pub b1: f32,
+    pub b2: f32,
+}
+
+/// Möller–Trumbore, as the lecture gives it ("Fast, Minimum Storage
+/// Ray/Triangle Intersection", JGT 1997): with `E1 = v1 − v0`, `E2 = v2 − v0`,
+/// `S = o − v0`, `S1 = d × E2`, `S2 = S × E1` and one division by
+/// `det = S1·E1`:
+///
+/// `[t, b1, b2] = [S2·E2, S1·S, S2·d] / det`,
+///
+/// a hit iff `b1 ≥ 0`, `b2 ≥ 0`, `b1 + b2 ≤ 1` and `t ∈ [t_min, t_max)`.
+///
+/// The three edge tests are made on the numerators and allow each its
+/// floating-point error bound (γ(8) times the sum of the magnitudes of the
+/// products that form it, Higham §3.1), instead of an exact comparison with
+/// zero: two triangles sharing an edge then overlap by at most a few ulps
+/// rather than leaving a gap between them that a ray can slip through. A
+/// ray exactly on a shared edge may hit both; the closest-hit search keeps one.
+#[inline(always)]
+pub fn intersect_mt(
+    o: Vec3,
+    d: Vec3,
+    v0: Vec3,
+    v1: Vec3,
+    v2: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<TriangleHit> {
+    let e1 = v1 - v0;
+    let e2 = v2 - v0;
+    let s1 = d.cross(e2);
+    let det = s1.dot(e1);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let s = o - v0;
+    let s2 = s.cross(e1);
+    // Numerators, made positive for det > 0.
+    let sign = 1.0f32.copysign(det);
+    let n1 = s1.dot(s) * sign;
+    let n2 = s2.dot(d) * sign;
+    let det_abs = det.abs();
+    let g = gamma(8);
+    let err1 = g * s1.abs().dot(s.abs());
+    let err2 = g * s2.abs().dot(d.abs());
+    let err_det = g * s1.abs().dot(e1.abs());
+    if n1 < -err1 || n2 < -err2 || n1 + n2 > det_abs + err1 + err2 + err_det {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let t = s2.dot(e2) * inv;
+    if !(t >= t_min && t < t_max) {
+        return None;
+    }
+    Some(TriangleHit {
+        t,
+        b1: (n1 / det_abs).clamp(0.0, 1.0),
+        b2: (n2 / det_abs).clamp(0.0, 1.0),
+    })
+}
+
+/// The watertight test of Woop, Benthin and Wald ("Watertight Ray/Triangle
+/// Intersection", JCGT 2(1), 2013), as pbrt-v4 writes it: vertices are moved
+/// into a frame where the ray is the +z axis (translate by −o, permute so that
+/// the largest direction component is z, shear), and the 2D edge functions of
+/// the projected triangle decide the hit. Edge functions that round to zero
+/// are recomputed in f64, so that a ray through a shared edge or vertex is
+/// never missed by both triangles. Returns also whether the hit lies exactly
+/// on an edge (an edge function is zero), which [`super::Mesh::contains`] uses
+/// to recast its ray.
+#[inline]
+pub fn intersect_watertight(
+    o: Vec3,
+    d: Vec3,
+    v0: Vec3,
+    v1: Vec3,
+    v2: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(TriangleHit, bool)> {
+    let kz = d.abs().max_position();
+    let kx = (kz + 1) % 3;
+    let ky = (kx + 1) % 3;
+    let permute = |v: Vec3| Vec3::new(v[kx], v[ky], v[kz]);
+    let dp = permute(d);
+    let (sx, sy, sz) = (-dp.x / dp.z, -dp.y / dp.z, 1.0 / dp.z);
+    let shear = |v: Vec3| {
+        let p = permute(v - o);
+        Vec3::new(p.x + sx * p.z, p.y + sy * p.z, p.z)
+    };
+    let (p0, p1, p2) = (shear(v0), shear(v1), shear(v2));
+    let mut e0 = p1.x * p2.y - p1.y * p2.x;
+    let mut e1 = p2.x * p0.y - p2.y * p0.x;
+    let mut e2 = p0.x * p1.y - p0.y * p1.x;
+    if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+        let f = |a: Vec3, b: Vec3| (a.x as f64 * b.y as f64 - a.y as f64 * b.x as f64) as f32;
+        e0 = f(p1, p2);
+        e1 = f(p2, p0);
+        e2 = f(p0, p1);
+    }
+    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+        return None;
+    }
+    let det = e0 + e1 + e2;
+    if det == 0.0 {
+        return None;
+    }
+    let t_scaled = e0 * p0.z * sz + e1 * p1.z * sz + e2 * p2.z * sz;
+    let t = t_scaled / det;
+    if !(t >= t_min && t < t_max) {
+        return None;
+    }
+    let on_edge = e0 == 0.0 || e1 == 0.0 || e2 == 0.0;
+    Some((
+        TriangleHit {
+            t,
+            b1: e1 / det,
+            b2: e2 / det,
+        },
+        on_edge,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const V0: Vec3 = Vec3::new(0.0, 0.0, 0.0);
+    const V1: Vec3 = Vec3::new(1.0, 0.0, 0.0);
+    const V2: Vec3 = Vec3::new(0.0, 1.0, 0.0);
+
+    #[test]
+    fn hit_returns_t_and_barycentrics() {
+        let h = intersect_mt(
+            Vec3::new(0.25, 0.5, -2.0),
+            Vec3::Z,
+            V0,
+            V1,
+            V2,
+            0.0,
+            f32::INFINITY,
+        )
+        .unwrap();
+        assert_eq!((h.t, h.b1, h.b2), (2.0, 0.25, 0.5));
+        let (w, edge) = intersect_watertight(
+            Vec3::new(0.25, 0.5, -2.0),
+            Vec3::Z,
+            V0,
+            V1,
+            V2,
+            0.0,
+            f32::INFINITY,
+        )
+        .unwrap();
+        assert!(!edge);
+        assert!(
+            (w.t - 2.0).abs() < 1e-6 && (w.b1 - 0.25).abs() < 1e-6 && (w.b2 - 0.5).abs() < 1e-6
+        );
+    }
+
+    #[test]
+    fn misses_outside_behind_and_parallel() {
+        let inf = f32::INFINITY;
+        assert!(intersect_mt(Vec3::new(0.6, 0.6, -1.0), Vec3::Z, V0, V1, V2, 0.0, inf).is_none());
+        assert!(intersect_mt(Vec3::new(0.2, 0.2, 1.0), Vec3::Z, V0, V1, V2, 0.0, inf).is_none());
+        assert!(intersect_mt(Vec3::new(0.2, 0.2, 1.0), Vec3::X, V0, V1, V2, 0.0, inf).is_none());
+        assert!(intersect_mt(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, V0, V1, V2, 0.0, 0.5).is_none());
+        assert!(
+            intersect_watertight(Vec3::new(0.6, 0.6, -1.0), Vec3::Z, V0, V1, V2, 0.0, inf)
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn both_windings_are_hit() {
+        let h = intersect_mt(
+            Vec3::new(0.2, 0.2, -1.0),
+            Vec3::Z,
+            V0,
+            V2,
+            V1,
+            0.0,
+            f32::INFINITY,
+        )
+        .unwrap();
+        assert_eq!(h.t, 1.0);
+        assert!((h.b1 - 0.2).abs() < 1e-6 && (h.b2 - 0.2).abs() < 1e-6);
+    }
+
+    #[test]
+    fn degenerate_triangle_is_never_hit() {
+        // Collinear vertices: zero area.
+        let o = Vec3::new(0.5, 0.0, -1.0);
+        assert!(intersect_mt(o, Vec3::Z, V0, V1, V1 * 2.0, 0.0, f32::INFINITY).is_none());
+        assert!(intersect_watertight(o, Vec3::Z, V0, V1, V1 * 2.0, 0.0, f32::INFINITY).is_none());
+    }
+
+    proptest! {
+        /// Hit points lie in the triangle's plane, and MT agrees with the
+        /// watertight test away from edges.
+        #[test]
+        fn mt_agrees_with_watertight(a in -1.0f32..1.0, b in -1.0f32..1.0, c in 0.1f32..3.0, ox in -2.0f32..2.0, oy in -2.0f32..2.0) {
+            let (v0, v1, v2) = (Vec3::new(a, b, 0.3), Vec3::new(1.0, -0.5, c), Vec3::new(-0.7, 1.2, -0.4));
+            let o = Vec3::new(ox, oy, -5.0);
+            let d = Vec3::new(0.1, -0.05, 1.0);
+            let mt = intersect_mt(o, d, v0, v1, v2, 0.0, f32::INFINITY);
+            let wt = intersect_watertight(o, d, v0, v1, v2, 0.0, f32::INFINITY);
+            match (mt, wt.map(|w| w.0)) {
+                (Some(m), Some(w)) => {
+                    prop_assert!((m.t - w.t).abs() <= 1e-4 * m.t.abs().max(1.0));
+                    let p = o + d * m.t;
+                    let n = (v1 - v0).cross(v2 - v0).normalize();
+                    prop_assert!((p - v0).dot(n).abs() < 1e-4);
+                }
+                // They may disagree only at an edge.
+                (Some(h), None) | (None, Some(h)) => {
+                    prop_assert!(h.b1 < 1e-4 || h.b2 < 1e-4 || h.b1 + h.b2 > 1.0 - 1e-4, "{:?}", h);
+                }
+                (None, None) => {}
+            }
+        }
+    }
+}

@@ -1,0 +1,264 @@
+//! Triangle meshes: the BVH against brute force, watertightness at shared
+//! edges and vertices, inside/outside, and instancing.
+
+use glam::{DVec3, Vec3 as V3};
+use glint::geometry::testgen::{icosphere, torus};
+use glint::geometry::{
+    Mesh, MeshInstance, Shape, TraceCounters, intersect_mt, intersect_watertight,
+};
+use glint::math::{Ray, Transform, Vec3};
+use glint::render::{Pcg32, render};
+use glint::scene::{Camera, Light, Material, Object, Scene};
+use glint::settings::{IntegratorKind, RenderSettings};
+use rayon::prelude::*;
+use std::sync::Arc;
+
+fn mesh((v, f): (Vec<V3>, Vec<[u32; 3]>)) -> Mesh {
+    Mesh::new(v, f, Vec::new(), Vec::new()).unwrap()
+}
+
+fn random_in(rng: &mut Pcg32, half: f32) -> Vec3 {
+    (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE) * half
+}
+
+/// Closest hit by testing every triangle: (t, triangle).
+fn brute_force(m: &Mesh, ray: &Ray) -> Option<(f32, u32)> {
+    let mut best: Option<(f32, u32)> = None;
+    for (i, t) in m.triangles.iter().enumerate() {
+        let [a, b, c] = t.map(|k| Vec3::from(m.positions[k as usize]));
+        let t_max = best.map_or(ray.t_max, |b| b.0);
+        if let Some(h) = intersect_mt(ray.o, ray.d, a, b, c, ray.t_min, t_max) {
+            best = Some((h.t, i as u32));
+        }
+    }
+    best
+}
+
+fn random_soup(n: usize, seed: u64) -> Mesh {
+    let mut rng = Pcg32::new(seed, 4);
+    let mut v = Vec::new();
+    let mut f = Vec::new();
+    for i in 0..n {
+        let c = random_in(&mut rng, 5.0);
+        for _ in 0..3 {
+            v.push(V3::from(c + random_in(&mut rng, 0.4)));
+        }
+        f.push([3 * i as u32, 3 * i as u32 + 1, 3 * i as u32 + 2]);
+    }
+    mesh((v, f))
+}
+
+#[test]
+fn bvh_matches_brute_force_over_100k_rays() {
+    let meshes = [
+        random_soup(3000, 1),
+        mesh(icosphere(3, 2.0)),
+        mesh(torus(2.0, 0.6, 40, 20)),
+    ];
+    for (k, m) in meshes.iter().enumerate() {
+        let bvh_ok = m.bvh.validate(
+            &m.triangles
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(|i| Vec3::from(m.positions[i as usize]));
+                    glint::math::Aabb::new(a.min(b).min(c), a.max(b).max(c))
+                })
+                .collect::<Vec<_>>(),
+        );
+        assert!(bvh_ok.is_ok(), "{bvh_ok:?}");
+        let rays = if k == 0 { 40_000 } else { 30_000 };
+        let mismatches: usize = (0..rays)
+            .into_par_iter()
+            .map(|i| {
+                let mut rng = Pcg32::new(i as u64, 10 + k as u64);
+                let o = random_in(&mut rng, 8.0);
+                let target = random_in(&mut rng, 3.0);
+                let ray = Ray::new(o, target - o);
+                let mut c = TraceCounters::default();
+                let got = m.intersect_object(&ray, &mut c).map(|h| (h.t, h.prim));
+                let want = brute_force(m, &ray);
+                let occluded = m.occludes_object(&ray, &mut c);
+                let same = match (got, want) {
+                    (Some(g), Some(w)) => {
+                        g.0 == w.0
+                            && (g.1 == w.1 || {
+                                // A tie at a shared edge: both triangles give this t.
+                                let [a, b, cc] = m.triangles[g.1 as usize]
+                                    .map(|x| Vec3::from(m.positions[x as usize]));
+                                intersect_mt(ray.o, ray.d, a, b, cc, 0.0, f32::INFINITY)
+                                    .map(|h| h.t)
+                                    == Some(w.0)
+                            })
+                    }
+                    (None, None) => true,
+                    _ => false,
+                };
+                (!same || occluded != want.is_some()) as usize
+            })
+            .sum();
+        assert_eq!(
+            mismatches, 0,
+            "mesh {k}: {mismatches} rays differ from brute force"
+        );
+    }
+}
+
+/// Rays from outside aimed exactly at shared edges (midpoints and points a
+/// third of the way along) and at shared vertices of closed meshes, from
+/// directions near the surface normal there (so every triangle around the
+/// target faces the ray: at a silhouette a ray through an edge only grazes the
+/// surface, and a miss is right). Every ray must hit one of the triangles
+/// around its target: none may slip between them.
+#[test]
+fn no_leaks_at_shared_edges_and_vertices() {
+    for (name, m) in [
+        ("icosphere", mesh(icosphere(4, 1.0))),
+        ("torus", mesh(torus(1.0, 0.35, 64, 32))),
+    ] {
+        let p = |i: u32| Vec3::from(m.positions[i as usize]);
+        let normal = |t: &[u32; 3]| (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).normalize();
+        let mut by_edge: std::collections::HashMap<(u32, u32), Vec<usize>> = Default::default();
+        let mut by_vertex: Vec<Vec<usize>> = vec![Vec::new(); m.positions.len()];
+        for (i, t) in m.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                by_edge.entry((a.min(b), a.max(b))).or_default().push(i);
+                by_vertex[a as usize].push(i);
+            }
+        }
+        // (target point, triangles around it)
+        let mut targets: Vec<(Vec3, &[usize])> = Vec::new();
+        for (&(a, b), tris) in &by_edge {
+            assert_eq!(
+                tris.len(),
+                2,
+                "{name}: edge {a}-{b} is not shared by two triangles"
+            );
+            targets.push(((p(a) + p(b)) * 0.5, tris));
+            targets.push((p(a) + (p(b) - p(a)) / 3.0, tris));
+        }
+        for (v, tris) in by_vertex.iter().enumerate() {
+            targets.push((p(v as u32), tris));
+        }
+        let mut rng = Pcg32::new(77, 1);
+        let (mut leaks_mt, mut leaks_wt) = (0, 0);
+        for &(target, tris) in &targets {
+            let n: Vec3 = tris
+                .iter()
+                .map(|&i| normal(&m.triangles[i]))
+                .sum::<Vec3>()
+                .normalize();
+            let o = target + (n + random_in(&mut rng, 0.15)) * (1.0 + 3.0 * rng.next_f32());
+            let d = target - o;
+            assert!(
+                tris.iter().all(|&i| normal(&m.triangles[i]).dot(d) < 0.0),
+                "{name}: a triangle faces away"
+            );
+            let hits = |test: &dyn Fn(Vec3, Vec3, Vec3) -> bool| {
+                tris.iter().any(|&i| {
+                    let [a, b, c] = m.triangles[i].map(p);
+                    test(a, b, c)
+                })
+            };
+            if !hits(&|a, b, c| intersect_mt(o, d, a, b, c, 0.0, f32::INFINITY).is_some()) {
+                leaks_mt += 1;
+            }
+            if !hits(&|a, b, c| intersect_watertight(o, d, a, b, c, 0.0, f32::INFINITY).is_some()) {
+                leaks_wt += 1;
+            }
+        }
+        assert!(targets.len() > 5000, "{name}: {}", targets.len());
+        assert_eq!(
+            (leaks_mt, leaks_wt),
+            (0, 0),
+            "{name}: leaks of {} rays (Möller–Trumbore, watertight)",
+            targets.len()
+        );
+    }
+}
+
+#[test]
+fn contains_matches_analytic_inside_outside() {
+    let sphere = mesh(icosphere(4, 1.0));
+    let (big_r, small_r) = (1.0f32, 0.4f32);
+    let ring = mesh(torus(big_r, small_r, 96, 48));
+    let mut rng = Pcg32::new(5, 9);
+    let mut checked = 0;
+    for _ in 0..4000 {
+        let p = random_in(&mut rng, 1.6);
+        // Facets lie inside the analytic surface by at most ~0.5% here: skip a band.
+        let r = p.length();
+        if (r - 1.0).abs() > 0.02 {
+            assert_eq!(sphere.contains(p), r < 1.0, "sphere at {p:?}");
+            checked += 1;
+        }
+        let q = ((p.x * p.x + p.y * p.y).sqrt() - big_r).hypot(p.z);
+        if (q - small_r).abs() > 0.02 {
+            assert_eq!(ring.contains(p), q < small_r, "torus at {p:?}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 7000);
+    // Points exactly on axes and planes of symmetry, where a ray along a
+    // coordinate direction would graze edges and vertices.
+    assert!(sphere.contains(Vec3::ZERO));
+    assert!(!ring.contains(Vec3::ZERO));
+    assert!(ring.contains(Vec3::new(1.0, 0.0, 0.0)));
+}
+
+/// An instance with a transform renders the same image as the mesh with the
+/// transform baked into its vertices.
+#[test]
+fn instance_renders_like_the_baked_mesh() {
+    let (v, f) = torus(1.0, 0.35, 48, 24);
+    let t = Transform::from_parts(
+        DVec3::new(1.0, 1.5, 0.8),
+        DVec3::new(-60.0, 20.0, 10.0),
+        DVec3::new(0.3, 1.0, -0.5),
+    )
+    .unwrap();
+    let baked: Vec<V3> = v
+        .iter()
+        .map(|p| t.world_from_object.transform_point3(p.as_dvec3()).as_vec3())
+        .collect();
+    let instance = Shape::Mesh(MeshInstance::new(Arc::new(mesh((v, f.clone()))), Some(&t)));
+    let plain = Shape::Mesh(MeshInstance::new(Arc::new(mesh((baked, f))), None));
+    let scene = |shape: Shape| {
+        Scene::new(
+            Camera::try_new(
+                Vec3::new(0.0, 1.5, -3.5),
+                Vec3::new(0.3, 1.0, -0.5),
+                Vec3::Y,
+                40.0,
+            )
+            .unwrap(),
+            vec![Object { shape, material: 0 }],
+            vec![Material::default_diffuse()],
+            vec![Light::Point {
+                position: Vec3::new(3.0, 6.0, -4.0),
+                intensity: glint::math::Color::splat(40.0),
+            }],
+            glint::math::Color::ZERO,
+            glint::math::Color::ZERO,
+        )
+    };
+    let settings = RenderSettings {
+        width: 96,
+        height: 72,
+        spp: 1,
+        integrator: IntegratorKind::Raycast,
+        ..Default::default()
+    };
+    let (a, _) = render(&scene(instance), &settings, &|_| {}).unwrap();
+    let (b, _) = render(&scene(plain), &settings, &|_| {}).unwrap();
+    let lit = a.pixels.iter().filter(|c| c.x > 0.0).count();
+    let differ = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .filter(|(x, y)| (**x - **y).abs().max_element() > 1e-3)
+        .count();
+    assert!(lit > 1000, "{lit} lit pixels");
+    // Silhouette pixels may flip where a ray grazes an edge to within rounding.
+    assert!(differ <= lit / 200, "{differ} of {lit} pixels differ");
+}
