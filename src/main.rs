@@ -3,9 +3,10 @@
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glint::render::{self, ImageFormat, RenderStats};
-use glint::scene::{self, SceneFile};
+use glint::scene::{self, GeometryStats, SceneFile};
 use glint::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP};
 use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,6 +25,12 @@ struct Cli {
 enum Command {
     /// Render a scene file (or the built-in Whitted scene) to PNG or EXR.
     Render(RenderArgs),
+    /// Load a mesh file (PLY, OBJ, glTF) and print its counts, bounds, load
+    /// and BVH build time and memory.
+    Info {
+        /// The mesh file.
+        mesh: PathBuf,
+    },
 }
 
 #[derive(Args, Debug, Default)]
@@ -78,11 +85,12 @@ fn parse_weight(s: &str) -> Result<f32, String> {
 
 fn main() {
     let cli = Cli::parse();
-    let args = match cli.command {
-        Some(Command::Render(args)) => args,
-        None => RenderArgs::default(),
+    let result = match cli.command {
+        Some(Command::Render(args)) => run_render(args),
+        Some(Command::Info { mesh }) => run_info(&mesh),
+        None => run_render(RenderArgs::default()),
     };
-    if let Err(e) = run_render(args) {
+    if let Err(e) = result {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
@@ -122,6 +130,8 @@ fn run_render(args: RenderArgs) -> Result<()> {
         SceneFile {
             scene,
             mut settings,
+            seconds_mesh_load,
+            seconds_mesh_build,
         },
         scene_name,
     ) = match &args.scene {
@@ -134,7 +144,11 @@ fn run_render(args: RenderArgs) -> Result<()> {
             "the built-in Whitted scene".to_string(),
         ),
     };
-    let seconds_load = load_start.elapsed().as_secs_f64();
+    // Reading files and parsing vs. building BVHs (mesh BVHs are built while
+    // the scene loads; the top-level BVH with the scene).
+    let seconds_total = load_start.elapsed().as_secs_f64();
+    let seconds_build = seconds_mesh_build;
+    let seconds_load = (seconds_total - seconds_build).max(seconds_mesh_load);
 
     if let Some(w) = args.width {
         settings.width = w;
@@ -180,18 +194,126 @@ fn run_render(args: RenderArgs) -> Result<()> {
     stats.seconds_load = seconds_load;
 
     render::write_image(&output, &image)?;
+    let report = Report::new(stats, scene.geometry_stats(), seconds_build);
     if let Some(path) = &args.stats_json {
-        write_stats_json(path, &stats)?;
+        write_stats_json(path, &report)?;
     }
     if !args.quiet {
-        eprintln!("{}", summary(&scene_name, &stats));
+        eprintln!("{}", summary(&scene_name, &report));
         eprintln!("wrote {}", output.display());
     }
     Ok(())
 }
 
+/// Everything `--stats-json` writes: the render's figures, the geometry's,
+/// and the process's peak memory.
+#[derive(Serialize)]
+struct Report {
+    #[serde(flatten)]
+    render: RenderStats,
+    #[serde(flatten)]
+    geometry: GeometryStats,
+    seconds_build: f64,
+    /// BVH bytes per distinct triangle (0 without meshes).
+    bvh_bytes_per_triangle: f64,
+    /// Mesh bytes (vertices, indices, BVH) per distinct triangle.
+    bytes_per_triangle: f64,
+    /// Peak resident memory of the process (Linux; null elsewhere).
+    peak_rss_bytes: Option<u64>,
+}
+
+impl Report {
+    fn new(render: RenderStats, geometry: GeometryStats, seconds_build: f64) -> Self {
+        let per = |bytes: u64| {
+            if geometry.triangles > 0 {
+                bytes as f64 / geometry.triangles as f64
+            } else {
+                0.0
+            }
+        };
+        Report {
+            render,
+            geometry,
+            seconds_build,
+            bvh_bytes_per_triangle: per(geometry.bvh_bytes),
+            bytes_per_triangle: per(geometry.mesh_bytes),
+            peak_rss_bytes: peak_rss_bytes(),
+        }
+    }
+}
+
+/// `VmHWM` of /proc/self/status: the peak resident set size.
+fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+fn run_info(path: &Path) -> Result<()> {
+    let model = scene::meshio::load_mesh_file(path)?;
+    let mut bounds = glint::math::Aabb::EMPTY;
+    let (mut vertices, mut triangles, mut nodes, mut bvh_bytes, mut bytes) = (0, 0, 0, 0, 0);
+    let mut seen = std::collections::HashSet::new();
+    for part in &model.parts {
+        let instance =
+            glint::geometry::MeshInstance::new(part.mesh.clone(), part.transform.as_ref());
+        bounds = bounds.union(&instance.bounds());
+        if seen.insert(std::sync::Arc::as_ptr(&part.mesh)) {
+            vertices += part.mesh.positions.len();
+            triangles += part.mesh.triangles.len();
+            nodes += part.mesh.bvh.nodes.len();
+            bvh_bytes += part.mesh.bvh.bytes();
+            bytes += part.mesh.bytes();
+        }
+    }
+    let per = |b: usize| b as f64 / triangles.max(1) as f64;
+    println!("{}", path.display());
+    println!(
+        "  parts        {} ({} distinct meshes)",
+        model.parts.len(),
+        seen.len()
+    );
+    println!("  vertices     {}", group(vertices as u64));
+    println!("  triangles    {}", group(triangles as u64));
+    println!(
+        "  bounds       {:?} .. {:?}",
+        bounds.min.to_array(),
+        bounds.max.to_array()
+    );
+    println!(
+        "  load         {:.3} s ({:.1} M triangles/s)",
+        model.seconds_load,
+        triangles as f64 / model.seconds_load.max(1e-9) / 1e6
+    );
+    println!(
+        "  BVH build    {:.3} s ({:.1} M triangles/s), {} nodes",
+        model.seconds_build,
+        triangles as f64 / model.seconds_build.max(1e-9) / 1e6,
+        group(nodes as u64)
+    );
+    println!(
+        "  memory       {:.1} MB in all, {:.1} bytes per triangle ({:.1} of them BVH)",
+        bytes as f64 / 1e6,
+        per(bytes),
+        per(bvh_bytes)
+    );
+    if let Some(peak) = peak_rss_bytes() {
+        println!("  peak RSS     {:.1} MB", peak as f64 / 1e6);
+    }
+    if let Some(c) = &model.camera {
+        println!(
+            "  camera       at {:?} looking at {:?}, fov {:.1}°",
+            c.position.to_array(),
+            c.look_at.to_array(),
+            c.fov_y_deg
+        );
+    }
+    Ok(())
+}
+
 /// The statistics as JSON, written atomically like the image.
-fn write_stats_json(path: &Path, stats: &RenderStats) -> Result<()> {
+fn write_stats_json(path: &Path, stats: &Report) -> Result<()> {
     let json = serde_json::to_string_pretty(stats).context("serialising statistics")?;
     let tmp = path.with_file_name(format!(
         ".{}.{}.tmp",
@@ -208,7 +330,9 @@ fn write_stats_json(path: &Path, stats: &RenderStats) -> Result<()> {
         .with_context(|| format!("cannot write statistics to `{}`", path.display()))
 }
 
-fn summary(scene_name: &str, s: &RenderStats) -> String {
+fn summary(scene_name: &str, report: &Report) -> String {
+    let s = &report.render;
+    let g = &report.geometry;
     let nan = if s.nan_pixels > 0 {
         format!(
             " {} pixels had NaN or infinite samples ({} samples, rendered as black).",
@@ -228,10 +352,26 @@ fn summary(scene_name: &str, s: &RenderStats) -> String {
     } else {
         String::new()
     };
+    let meshes = if g.instances > 0 {
+        format!(
+            " {} triangles in {} meshes, {} instances ({} instanced); BVH {} nodes, {:.1} bytes per triangle, built in {:.3} s; {:.1} BVH nodes and {:.1} triangle tests per ray.",
+            group(g.triangles),
+            g.meshes,
+            g.instances,
+            group(g.triangles_instanced),
+            group(g.bvh_nodes),
+            report.bvh_bytes_per_triangle,
+            report.seconds_build,
+            s.bvh_nodes_visited_per_ray,
+            s.triangle_tests_per_ray
+        )
+    } else {
+        String::new()
+    };
     format!(
         "Rendered {scene_name} at {}×{}, {} spp, {} integrator (max depth {}), {} threads. \
          Load {:.1} ms, render {:.1} ms. Rays: {} camera, {} shadow, {} reflection, {} refraction \
-         ({} in all, {:.1} M rays/s). {} intersection tests{implicit}.{nan}",
+         ({} in all, {:.1} M rays/s). {} intersection tests{implicit}.{nan}{meshes}",
         s.width,
         s.height,
         s.spp,

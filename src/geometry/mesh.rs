@@ -333,6 +333,7 @@ impl MeshInstance {
         self.mesh.occludes_object(&self.object_ray(ray), counters)
     }
 
+    #[inline(never)]
     pub fn surface(&self, _ray: &Ray, hit: &ShapeHit) -> SurfacePoint {
         let s = self.mesh.surface_object(hit);
         match &self.transform {
@@ -353,6 +354,7 @@ impl MeshInstance {
         }
     }
 
+    #[inline(never)]
     pub fn uv(&self, p: Vec3, prim: u32) -> Vec2 {
         let p = match &self.transform {
             None => p,
@@ -363,6 +365,7 @@ impl MeshInstance {
 
     /// See [`super::Shape::crossings`]. The length inside assumes the segment
     /// starts outside the mesh (true of shadow rays from other surfaces).
+    #[inline(never)]
     pub fn crossings(
         &self,
         ray: &Ray,

@@ -25,15 +25,17 @@
 //! material = "glass"
 //! ```
 
+use super::meshio::{Model, load_mesh_file};
 use super::{Camera, CheckerMode, Light, Material, MaterialKind, Object, Scene, Texture};
 use crate::geometry::implicit::{HEART_BOUNDS, HEART_FORMULA, ImplicitError, torus_formula};
-use crate::geometry::{Cuboid, Implicit, Plane, Shape, Sphere};
+use crate::geometry::{Cuboid, Implicit, MeshInstance, Plane, Shape, Sphere};
 use crate::math::{Aabb, Color, Transform, Vec3};
 use crate::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP, RenderSettings};
 use glam::DVec3;
 use std::collections::HashMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
@@ -46,6 +48,9 @@ pub const BUILTIN_WHITTED: &str = include_str!("../../scenes/whitted.toml");
 pub struct SceneFile {
     pub scene: Scene,
     pub settings: RenderSettings,
+    /// Seconds spent reading mesh files and building their BVHs.
+    pub seconds_mesh_load: f64,
+    pub seconds_mesh_build: f64,
 }
 
 /// Why a scene could not be loaded. Every variant names the file.
@@ -433,13 +438,21 @@ fn read_document(ctx: &Ctx, doc: &DeTable, span: Range<usize>) -> Result<SceneFi
     }
 
     let mut objects = Vec::new();
+    let mut cache = MeshCache::default();
     if let Some(v) = top.get("object") {
         for (i, item) in ctx
             .array(v, "an array of [[object]] tables")?
             .iter()
             .enumerate()
         {
-            objects.push(read_object(ctx, item, i + 1, &material_index)?);
+            objects.extend(read_object(
+                ctx,
+                item,
+                i + 1,
+                &material_index,
+                &mut materials,
+                &mut cache,
+            )?);
         }
     }
     top.finish()?;
@@ -447,6 +460,8 @@ fn read_document(ctx: &Ctx, doc: &DeTable, span: Range<usize>) -> Result<SceneFi
     Ok(SceneFile {
         scene: Scene::new(camera, objects, materials, lights, background, ambient),
         settings,
+        seconds_mesh_load: cache.models.values().map(|m| m.0.seconds_load).sum(),
+        seconds_mesh_build: cache.models.values().map(|m| m.0.seconds_build).sum(),
     })
 }
 
@@ -703,21 +718,94 @@ fn formula_error(ctx: &Ctx, v: &Value, formula: &str, column: usize, message: &s
     }
 }
 
+/// Mesh files loaded so far (each is read once, however many objects use it),
+/// with the indices their materials got in the scene's material list.
+#[derive(Default)]
+struct MeshCache {
+    models: HashMap<PathBuf, (Arc<Model>, Vec<Option<u32>>)>,
+}
+
+/// A `shape = "mesh"` object: one object per part of the file, each an
+/// instance of the file's (shared) mesh under the object's transform.
+fn read_mesh(
+    ctx: &Ctx,
+    f: &mut Fields,
+    all_materials: &mut Vec<Material>,
+    cache: &mut MeshCache,
+) -> Result<Vec<(Shape, Option<u32>)>> {
+    let file = f.require("file")?;
+    let relative = ctx.string(file)?;
+    let folder = ctx.path.parent().unwrap_or(Path::new(""));
+    let path = folder.join(relative);
+    let (model, material_ids) = match cache.models.get(&path) {
+        Some(entry) => entry.clone(),
+        None => {
+            let model = load_mesh_file(&path).map_err(|e| {
+                ctx.error(
+                    file.span(),
+                    format!(
+                        "cannot load mesh `{relative}` (looked for `{}`): {e}",
+                        path.display()
+                    ),
+                )
+            })?;
+            let ids = model
+                .parts
+                .iter()
+                .map(|part| {
+                    part.material.clone().map(|m| {
+                        all_materials.push(m);
+                        all_materials.len() as u32 - 1
+                    })
+                })
+                .collect();
+            let entry = (Arc::new(model), ids);
+            cache.models.insert(path.clone(), entry.clone());
+            entry
+        }
+    };
+    let transform = f.opt("transform", read_transform)?;
+    model
+        .parts
+        .iter()
+        .zip(material_ids)
+        .map(|(part, material)| {
+            let world = match (&transform, &part.transform) {
+                (None, None) => None,
+                (Some(t), None) | (None, Some(t)) => Some(t.clone()),
+                (Some(outer), Some(inner)) => Some(
+                    Transform::from_affine(outer.world_from_object * inner.world_from_object)
+                        .ok_or_else(|| {
+                            ctx.error(f.span.clone(), "the combined transform is singular")
+                        })?,
+                ),
+            };
+            Ok((
+                Shape::Mesh(MeshInstance::new(part.mesh.clone(), world.as_ref())),
+                material,
+            ))
+        })
+        .collect()
+}
+
 fn read_object(
     ctx: &Ctx,
     v: &Value,
     index: usize,
     materials: &HashMap<String, u32>,
-) -> Result<Object> {
+    all_materials: &mut Vec<Material>,
+    cache: &mut MeshCache,
+) -> Result<Vec<Object>> {
     let mut f = Fields::of(ctx, v, format!("object {index}"))?;
     let kind = f.require("shape")?;
     let kind_name = ctx.string(kind)?;
     f.what = format!("object {index} ({kind_name})");
-    let shape = match kind_name {
-        "sphere" => Shape::Sphere(Sphere::new(
+    let one = |shape| Ok(vec![(shape, None)]);
+    let shapes: Vec<(Shape, Option<u32>)> = match kind_name {
+        "sphere" => one(Shape::Sphere(Sphere::new(
             f.req("center", Ctx::vec3)?,
             f.checked("radius", None, |x| x > 0.0, "a positive radius")?,
-        )),
+        ))),
         "plane" => {
             let point = f.opt("point", Ctx::vec3)?.unwrap_or(Vec3::ZERO);
             let normal = match f.get("normal") {
@@ -727,7 +815,7 @@ fn read_object(
                     .ok_or_else(|| ctx.error(n.span(), "expected a non-zero normal"))?,
                 None => Vec3::Y,
             };
-            Shape::Plane(Plane::new(point, normal))
+            one(Shape::Plane(Plane::new(point, normal)))
         }
         "box" => {
             let min = f.req("min", Ctx::vec3)?;
@@ -739,19 +827,22 @@ fn read_object(
                     "expected `max` greater than `min` in every coordinate",
                 ));
             }
-            Shape::Cuboid(Cuboid::new(min, max))
+            one(Shape::Cuboid(Cuboid::new(min, max)))
         }
-        "implicit" => Shape::Implicit(Box::new(read_implicit(ctx, &mut f)?)),
+        "implicit" => one(Shape::Implicit(Box::new(read_implicit(ctx, &mut f)?))),
+        "mesh" => Ok(read_mesh(ctx, &mut f, all_materials, cache)?),
         other => {
             return Err(ctx.error(
                 kind.span(),
-                format!("unknown shape `{other}`; expected one of: sphere, plane, box, implicit"),
+                format!(
+                    "unknown shape `{other}`; expected one of: sphere, plane, box, implicit, mesh"
+                ),
             ));
         }
-    };
+    }?;
     let material = match f.get("material") {
-        None => 0,
-        Some(m) => {
+        None => None,
+        Some(m) => Some({
             let name = ctx.string(m)?;
             *materials.get(name).ok_or_else(|| {
                 let mut names: Vec<&str> = materials.keys().map(String::as_str).collect();
@@ -768,8 +859,15 @@ fn read_object(
                     ),
                 )
             })?
-        }
+        }),
     };
     f.finish()?;
-    Ok(Object { shape, material })
+    // The object's material overrides the file's; without either, grey.
+    Ok(shapes
+        .into_iter()
+        .map(|(shape, own)| Object {
+            shape,
+            material: material.or(own).unwrap_or(0),
+        })
+        .collect())
 }
