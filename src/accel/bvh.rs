@@ -5,7 +5,7 @@
 //!
 //! Build: Wald, "On fast Construction of SAH-based Bounding Volume
 //! Hierarchies" (2007): primitives are binned by centroid into `BINS` buckets
-//! along each axis, and the split minimising the surface area heuristic
+//! along the longest axis of their centroids' box, and the split minimising the surface area heuristic
 //! `C = C_trav + (A_L·N_L + A_R·N_R)/A` is taken, or a leaf when that is
 //! cheaper. Subtrees above `PARALLEL_THRESHOLD` primitives are built on both
 //! sides of a `rayon::join`, and binning of large nodes is split into chunks
@@ -97,22 +97,29 @@ pub struct TraversalCounters {
 #[derive(Clone, Copy)]
 struct Bin {
     bounds: Aabb,
+    centroids: Aabb,
     count: u32,
 }
 
 const EMPTY_BIN: Bin = Bin {
     bounds: Aabb::EMPTY,
+    centroids: Aabb::EMPTY,
     count: 0,
 };
+
+impl Bin {
+    fn merge(&self, o: &Bin) -> Bin {
+        Bin {
+            bounds: self.bounds.union(&o.bounds),
+            centroids: self.centroids.union(&o.centroids),
+            count: self.count + o.count,
+        }
+    }
+}
 
 fn area(b: &Aabb) -> f32 {
     let e = (b.max - b.min).max(Vec3::ZERO);
     2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
-}
-
-/// A subtree under construction: nodes with offsets local to it.
-struct Subtree {
-    nodes: Vec<BvhNode>,
 }
 
 impl Bvh {
@@ -121,6 +128,7 @@ impl Bvh {
     pub fn build(bounds: &[Aabb], centroids: &[Vec3]) -> Bvh {
         assert_eq!(bounds.len(), centroids.len(), "one centroid per box");
         let mut indices: Vec<u32> = (0..bounds.len() as u32)
+            .into_par_iter()
             .filter(|&i| {
                 let b = &bounds[i as usize];
                 b.min.is_finite() && b.max.is_finite() && b.min.cmple(b.max).all()
@@ -129,13 +137,12 @@ impl Bvh {
         if indices.is_empty() {
             return Bvh::default();
         }
-        let tree = build_node(bounds, centroids, &mut indices, 0);
-        Bvh {
-            nodes: tree.nodes,
-            indices,
-        }
+        let (b, cb) = node_bounds(bounds, centroids, &indices);
+        let mut nodes = Vec::with_capacity(2 * indices.len() / 2 + 1);
+        let builder = Builder { bounds, centroids };
+        builder.node(&mut indices, 0, b, cb, &mut nodes);
+        Bvh { nodes, indices }
     }
-
     /// The primitive at leaf position `k`.
     #[inline(always)]
     fn prim(&self, k: u32) -> u32 {
@@ -341,21 +348,25 @@ impl Bvh {
     }
 }
 
-/// Bins `indices` by centroid along every axis of `cb` (the centroids' box).
-fn bin(bounds: &[Aabb], centroids: &[Vec3], indices: &[u32], cb: &Aabb) -> [[Bin; BINS]; 3] {
-    let scale = Vec3::splat(BINS as f32) / (cb.max - cb.min).max(Vec3::splat(f32::MIN_POSITIVE));
+/// Bins `indices` by centroid along `axis` of `cb` (the centroids' box).
+fn bin(
+    bounds: &[Aabb],
+    centroids: &[Vec3],
+    indices: &[u32],
+    cb: &Aabb,
+    axis: usize,
+) -> [Bin; BINS] {
+    let scale = BINS as f32 / (cb.max[axis] - cb.min[axis]).max(f32::MIN_POSITIVE);
+    let lo = cb.min[axis];
     let one = |chunk: &[u32]| {
-        let mut bins = [[EMPTY_BIN; BINS]; 3];
+        let mut bins = [EMPTY_BIN; BINS];
         for &p in chunk {
             let c = centroids[p as usize];
-            let k = ((c - cb.min) * scale)
-                .as_uvec3()
-                .min(glam::UVec3::splat(BINS as u32 - 1));
-            for axis in 0..3 {
-                let bin = &mut bins[axis][k[axis] as usize];
-                bin.bounds = bin.bounds.union(&bounds[p as usize]);
-                bin.count += 1;
-            }
+            let k = (((c[axis] - lo) * scale) as usize).min(BINS - 1);
+            let bin = &mut bins[k];
+            bin.bounds = bin.bounds.union(&bounds[p as usize]);
+            bin.centroids = bin.centroids.union(&Aabb { min: c, max: c });
+            bin.count += 1;
         }
         bins
     };
@@ -363,13 +374,10 @@ fn bin(bounds: &[Aabb], centroids: &[Vec3], indices: &[u32], cb: &Aabb) -> [[Bin
         return one(indices);
     }
     indices.par_chunks(PARALLEL_BINNING / 4).map(one).reduce(
-        || [[EMPTY_BIN; BINS]; 3],
+        || [EMPTY_BIN; BINS],
         |mut a, b| {
-            for axis in 0..3 {
-                for k in 0..BINS {
-                    a[axis][k].bounds = a[axis][k].bounds.union(&b[axis][k].bounds);
-                    a[axis][k].count += b[axis][k].count;
-                }
+            for k in 0..BINS {
+                a[k] = a[k].merge(&b[k]);
             }
             a
         },
@@ -395,99 +403,148 @@ fn node_bounds(bounds: &[Aabb], centroids: &[Vec3], indices: &[u32]) -> (Aabb, A
     )
 }
 
-/// Builds the subtree over `indices` (which it reorders into leaf order);
-/// leaf offsets are relative to `first`, the position of `indices[0]` in the
-/// whole index array.
-fn build_node(bounds: &[Aabb], centroids: &[Vec3], indices: &mut [u32], first: usize) -> Subtree {
-    let (b, cb) = node_bounds(bounds, centroids, indices);
-    let n = indices.len();
-    let leaf = |indices: &[u32]| Subtree {
-        nodes: vec![BvhNode::new(&b, first as u32, indices.len() as u32)],
-    };
-    if n <= 2 || cb.max.cmple(cb.min).all() && n <= MAX_LEAF {
-        return leaf(indices);
-    }
-    // Find the cheapest split over all axes and bin boundaries.
-    let bins = bin(bounds, centroids, indices, &cb);
-    let mut best = (f32::INFINITY, 0usize, 0usize);
-    for (axis, bins) in bins.iter().enumerate() {
-        if cb.max[axis] <= cb.min[axis] {
-            continue;
-        }
-        let mut right_area = [0.0f32; BINS];
-        let mut right_count = [0u32; BINS];
-        let (mut acc, mut count) = (Aabb::EMPTY, 0);
-        for k in (1..BINS).rev() {
-            acc = acc.union(&bins[k].bounds);
-            count += bins[k].count;
-            right_area[k] = area(&acc);
-            right_count[k] = count;
-        }
-        let (mut acc, mut count) = (Aabb::EMPTY, 0);
-        for k in 1..BINS {
-            acc = acc.union(&bins[k - 1].bounds);
-            count += bins[k - 1].count;
-            let cost = area(&acc) * count as f32 + right_area[k] * right_count[k] as f32;
-            if count > 0 && right_count[k] > 0 && cost < best.0 {
-                best = (cost, axis, k);
-            }
-        }
-    }
-    let leaf_cost = n as f32;
-    let split_cost = TRAVERSAL_COST + best.0 / area(&b).max(f32::MIN_POSITIVE);
-    if best.0.is_infinite() || (split_cost >= leaf_cost && n <= MAX_LEAF) {
-        if n <= MAX_LEAF {
-            return leaf(indices);
-        }
-        // No useful SAH split (e.g. all centroids equal): split the list in half.
-        let mid = n / 2;
-        return split(bounds, centroids, indices, first, b, mid);
-    }
-    let (axis, k) = (best.1, best.2);
-    let scale = BINS as f32 / (cb.max[axis] - cb.min[axis]);
-    let mid = partition(indices, |p| {
-        let c = centroids[p as usize][axis];
-        (((c - cb.min[axis]) * scale) as usize).min(BINS - 1) < k
-    });
-    let mid = if mid == 0 || mid == n { n / 2 } else { mid };
-    split(bounds, centroids, indices, first, b, mid)
+struct Builder<'a> {
+    bounds: &'a [Aabb],
+    centroids: &'a [Vec3],
 }
 
-fn split(
-    bounds: &[Aabb],
-    centroids: &[Vec3],
-    indices: &mut [u32],
-    first: usize,
-    b: Aabb,
-    mid: usize,
-) -> Subtree {
-    let n = indices.len();
-    let (left_ix, right_ix) = indices.split_at_mut(mid);
-    let (left, right) = if n > PARALLEL_THRESHOLD {
-        rayon::join(
-            || build_node(bounds, centroids, left_ix, first),
-            || build_node(bounds, centroids, right_ix, first + mid),
-        )
-    } else {
-        (
-            build_node(bounds, centroids, left_ix, first),
-            build_node(bounds, centroids, right_ix, first + mid),
-        )
-    };
-    // Depth-first layout: [this, left subtree, right subtree].
-    let right_start = 1 + left.nodes.len();
-    let mut nodes = Vec::with_capacity(right_start + right.nodes.len());
-    nodes.push(BvhNode::new(&b, right_start as u32, 0));
-    let shift = |n: &BvhNode, by: usize| {
-        let mut n = *n;
-        if n.count == 0 {
-            n.offset += by as u32;
+impl Builder<'_> {
+    /// Appends the subtree over `indices` (which it reorders into leaf order)
+    /// to `out` in depth-first order, with node indices relative to `out`'s
+    /// start. `b` and `cb` are the boxes of the primitives and of their
+    /// centroids; `first` is the position of `indices[0]` in the whole array.
+    fn node(&self, indices: &mut [u32], first: usize, b: Aabb, cb: Aabb, out: &mut Vec<BvhNode>) {
+        let n = indices.len();
+        let here = out.len();
+        let leaf = |out: &mut Vec<BvhNode>| out.push(BvhNode::new(&b, first as u32, n as u32));
+        if n <= 2 || (cb.max.cmple(cb.min).all() && n <= MAX_LEAF) {
+            return leaf(out);
         }
-        n
-    };
-    nodes.extend(left.nodes.iter().map(|n| shift(n, 1)));
-    nodes.extend(right.nodes.iter().map(|n| shift(n, right_start)));
-    Subtree { nodes }
+        // The cheapest split over all axes and bin boundaries, with the
+        // bins of each side merged (their boxes are the children's boxes).
+        // Binned along the longest axis of the centroids' box only (Wald 2007).
+        let axis = (cb.max - cb.min).max_position();
+        let bins = bin(self.bounds, self.centroids, indices, &cb, axis);
+        let mut best: Option<(f32, usize, usize, Bin, Bin)> = None;
+        if cb.max[axis] > cb.min[axis] {
+            let mut right = [EMPTY_BIN; BINS];
+            let mut acc = EMPTY_BIN;
+            for k in (1..BINS).rev() {
+                acc = acc.merge(&bins[k]);
+                right[k] = acc;
+            }
+            let mut left = EMPTY_BIN;
+            for k in 1..BINS {
+                left = left.merge(&bins[k - 1]);
+                let r = &right[k];
+                if left.count == 0 || r.count == 0 {
+                    continue;
+                }
+                let cost =
+                    area(&left.bounds) * left.count as f32 + area(&r.bounds) * r.count as f32;
+                if best.as_ref().is_none_or(|b| cost < b.0) {
+                    best = Some((cost, axis, k, left, *r));
+                }
+            }
+        }
+        let split_cost = best.as_ref().map_or(f32::INFINITY, |b| {
+            TRAVERSAL_COST + b.0 / area(&b.3.bounds.union(&b.4.bounds)).max(f32::MIN_POSITIVE)
+        });
+        match best {
+            Some((_, axis, k, lb, rb)) if split_cost < n as f32 || n > MAX_LEAF => {
+                let scale = BINS as f32 / (cb.max[axis] - cb.min[axis]);
+                let mid = partition(indices, |p| {
+                    let c = self.centroids[p as usize][axis];
+                    (((c - cb.min[axis]) * scale) as usize).min(BINS - 1) < k
+                });
+                if mid == 0 || mid == n {
+                    // Rounding put every centroid on one side: split the list.
+                    return self.halves(indices, first, b, out, here);
+                }
+                self.children(
+                    indices,
+                    first,
+                    b,
+                    mid,
+                    (lb.bounds, lb.centroids),
+                    (rb.bounds, rb.centroids),
+                    out,
+                    here,
+                );
+            }
+            _ if n <= MAX_LEAF => leaf(out),
+            // No useful SAH split (e.g. all centroids equal): split the list in half.
+            _ => self.halves(indices, first, b, out, here),
+        }
+    }
+
+    fn halves(
+        &self,
+        indices: &mut [u32],
+        first: usize,
+        b: Aabb,
+        out: &mut Vec<BvhNode>,
+        here: usize,
+    ) {
+        let mid = indices.len() / 2;
+        let (l, r) = indices.split_at(mid);
+        let left = node_bounds(self.bounds, self.centroids, l);
+        let right = node_bounds(self.bounds, self.centroids, r);
+        self.children(indices, first, b, mid, left, right, out, here);
+    }
+
+    /// The node at `here` with children over `indices[..mid]` and `indices[mid..]`.
+    #[allow(clippy::too_many_arguments)]
+    fn children(
+        &self,
+        indices: &mut [u32],
+        first: usize,
+        b: Aabb,
+        mid: usize,
+        left: (Aabb, Aabb),
+        right: (Aabb, Aabb),
+        out: &mut Vec<BvhNode>,
+        here: usize,
+    ) {
+        out.push(BvhNode::new(&b, 0, 0));
+        let (left_ix, right_ix) = indices.split_at_mut(mid);
+        if indices_len(left_ix, right_ix) > PARALLEL_THRESHOLD {
+            // Both subtrees at once, each into its own array, then appended.
+            let (l, r) = rayon::join(
+                || {
+                    let mut v = Vec::new();
+                    self.node(left_ix, first, left.0, left.1, &mut v);
+                    v
+                },
+                || {
+                    let mut v = Vec::new();
+                    self.node(right_ix, first + mid, right.0, right.1, &mut v);
+                    v
+                },
+            );
+            let left_start = out.len();
+            let right_start = left_start + l.len();
+            let shift = |n: &BvhNode, by: usize| {
+                let mut n = *n;
+                if n.count == 0 {
+                    n.offset += by as u32;
+                }
+                n
+            };
+            out.extend(l.iter().map(|n| shift(n, left_start)));
+            out.extend(r.iter().map(|n| shift(n, right_start)));
+            out[here].offset = right_start as u32;
+        } else {
+            self.node(left_ix, first, left.0, left.1, out);
+            let right_start = out.len();
+            self.node(right_ix, first + mid, right.0, right.1, out);
+            out[here].offset = right_start as u32;
+        }
+    }
+}
+
+fn indices_len(a: &[u32], b: &[u32]) -> usize {
+    a.len() + b.len()
 }
 
 /// Moves the elements satisfying `left` to the front; returns their count.

@@ -2,5 +2,7 @@
 //! code serves a mesh's triangles and the scene's objects.
 
 mod bvh;
+mod bvh4;
 
 pub use bvh::{Bvh, BvhNode, TraversalCounters};
+pub use bvh4::{Bvh4, Bvh4Node};

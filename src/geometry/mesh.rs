@@ -3,7 +3,7 @@
 
 use super::triangle::{intersect_mt, intersect_watertight};
 use super::{ShapeHit, SurfacePoint, TraceCounters};
-use crate::accel::Bvh;
+use crate::accel::{Bvh, Bvh4};
 use crate::math::{Aabb, Ray, Transform, Vec3, gamma};
 use glam::{Affine3A, Mat3A, Vec2};
 use rayon::prelude::*;
@@ -19,7 +19,8 @@ pub struct Mesh {
     pub normals: Vec<glam::Vec3>,
     /// Per-vertex texture coordinates, or empty.
     pub uvs: Vec<Vec2>,
-    pub bvh: Bvh,
+    /// 4-wide BVH, collapsed from the binary SAH BVH.
+    pub bvh: Bvh4,
 }
 
 /// Why a mesh could not be built from its arrays.
@@ -82,13 +83,13 @@ impl Mesh {
                 (bb, (bb.min + bb.max) * 0.5)
             })
             .unzip();
-        let mut bvh = Bvh::build(&bounds, &centroids);
-        let triangles = bvh
+        let binary = Bvh::build(&bounds, &centroids);
+        let triangles = binary
             .indices
             .par_iter()
             .map(|&i| triangles[i as usize])
             .collect();
-        bvh.indices = Vec::new();
+        let bvh = Bvh4::from_binary(&binary);
         Ok(Mesh {
             positions,
             triangles,
@@ -99,7 +100,7 @@ impl Mesh {
     }
 
     pub fn bounds(&self) -> Aabb {
-        self.bvh.bounds()
+        self.bvh.bounds.unwrap_or(Aabb::EMPTY)
     }
 
     /// Bytes of vertex, index and BVH data.

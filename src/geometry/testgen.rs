@@ -67,6 +67,23 @@ pub fn icosphere(level: u32, radius: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     (v.into_iter().map(|p| p * radius).collect(), f)
 }
 
+/// An icosphere with radial bumps, `r = 1 + 0.08 sin 7x sin 7y sin 7z +
+/// 0.02 sin(31x + 17y)` (the bumpy sphere of `shared/anchors/common.py`;
+/// level 8 has 1.31M triangles).
+pub fn bumpy_icosphere(level: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let (v, f) = icosphere(level, 1.0);
+    let v = v
+        .into_iter()
+        .map(|p| {
+            let r = 1.0
+                + 0.08 * (7.0 * p.x).sin() * (7.0 * p.y).sin() * (7.0 * p.z).sin()
+                + 0.02 * (31.0 * p.x + 17.0 * p.y).sin();
+            p * r
+        })
+        .collect();
+    (v, f)
+}
+
 /// A torus around the z axis with major radius `major` and minor radius
 /// `minor`, `nu × nv` quads split into triangles.
 pub fn torus(major: f32, minor: f32, nu: u32, nv: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {

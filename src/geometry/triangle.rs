@@ -62,10 +62,11 @@ pub fn intersect_mt(
     if !(t >= t_min && t < t_max) {
         return None;
     }
+    let inv_abs = inv.abs();
     Some(TriangleHit {
         t,
-        b1: (n1 / det_abs).clamp(0.0, 1.0),
-        b2: (n2 / det_abs).clamp(0.0, 1.0),
+        b1: (n1 * inv_abs).clamp(0.0, 1.0),
+        b2: (n2 * inv_abs).clamp(0.0, 1.0),
     })
 }
 
