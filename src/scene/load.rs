@@ -743,10 +743,8 @@ fn read_mesh(
             let model = load_mesh_file(&path).map_err(|e| {
                 ctx.error(
                     file.span(),
-                    format!(
-                        "cannot load mesh `{relative}` (looked for `{}`): {e}",
-                        path.display()
-                    ),
+                    // The mesh error names the full path that was tried.
+                    format!("cannot load mesh `{relative}`: {e}"),
                 )
             })?;
             let ids = model
