@@ -35,7 +35,9 @@ enum Command {
 
 #[derive(Args, Debug, Default)]
 struct RenderArgs {
-    /// Scene file (TOML, see docs/scene-format.md); the built-in Whitted scene if omitted.
+    /// Scene file (TOML, see docs/scene-format.md), or a mesh file (.ply, .obj,
+    /// .gltf, .glb) to render framed by a default camera and light; the
+    /// built-in Whitted scene if omitted.
     scene: Option<PathBuf>,
     /// Output image, .png (sRGB, 8-bit) or .exr (linear, 32-bit float).
     /// Default: the scene file's name with .png, in the current folder.
@@ -65,6 +67,12 @@ struct RenderArgs {
     /// Also write the statistics as JSON to this file.
     #[arg(long, value_name = "FILE")]
     stats_json: Option<PathBuf>,
+    /// For a mesh file as SCENE: direction from the mesh's centre to the eye.
+    #[arg(long, value_parser = parse_vec3, default_value = "0.35,0.3,1", allow_hyphen_values = true)]
+    view: glint::math::Vec3,
+    /// For a mesh file as SCENE: the up axis (0,0,1 for z-up scans).
+    #[arg(long, value_parser = parse_vec3, default_value = "0,1,0", allow_hyphen_values = true)]
+    up: glint::math::Vec3,
     /// Print nothing but errors.
     #[arg(long, short)]
     quiet: bool,
@@ -74,6 +82,27 @@ struct RenderArgs {
 enum IntegratorArg {
     Raycast,
     Whitted,
+}
+
+/// Whether SCENE names a mesh file rather than a scene file.
+fn is_mesh_file(path: &Path) -> bool {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    matches!(ext.as_deref(), Some("ply" | "obj" | "gltf" | "glb"))
+}
+
+fn parse_vec3(s: &str) -> Result<glint::math::Vec3, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("expected three numbers x,y,z, found `{s}`"))?;
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(glint::math::Vec3::new(*x, *y, *z)),
+        _ => Err(format!("expected three numbers x,y,z, found `{s}`")),
+    }
 }
 
 fn parse_weight(s: &str) -> Result<f32, String> {
@@ -135,6 +164,13 @@ fn run_render(args: RenderArgs) -> Result<()> {
         },
         scene_name,
     ) = match &args.scene {
+        Some(path) if is_mesh_file(path) => {
+            let model = scene::meshio::load_mesh_file(path)?;
+            let file = scene::mesh_scene(&model, args.view, args.up).ok_or_else(|| {
+                anyhow::anyhow!("--view and --up must be non-zero and not parallel")
+            })?;
+            (file, path.display().to_string())
+        }
         Some(path) => (scene::load_scene_file(path)?, path.display().to_string()),
         None => (
             scene::parse_scene(

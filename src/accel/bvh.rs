@@ -7,7 +7,7 @@
 //! Hierarchies" (2007): primitives are binned by centroid into `BINS` buckets
 //! along the longest axis of their centroids' box, and the split minimising the surface area heuristic
 //! `C = C_trav + (A_L·N_L + A_R·N_R)/A` is taken, or a leaf when that is
-//! cheaper. Subtrees above `PARALLEL_THRESHOLD` primitives are built on both
+//! cheaper. Subtrees above `PARALLEL_THRESHOLD` primitives (and 1/32 of all) are built on both
 //! sides of a `rayon::join`, and binning of large nodes is split into chunks
 //! that run in parallel.
 
@@ -94,9 +94,56 @@ pub struct TraversalCounters {
     pub primitive_tests: u64,
 }
 
+/// A primitive as the builder sees it: its box and its index, 32 bytes.
+/// The builder partitions an array of these in place, so binning and
+/// partitioning stream through memory instead of gathering boxes through an
+/// index array (as Embree's `PrimRef`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub struct PrimRef {
+    /// Box minimum; the fourth lane holds the id's bits.
+    lo: glam::Vec4,
+    /// Box maximum (fourth lane unused).
+    hi: glam::Vec4,
+}
+
+impl PrimRef {
+    pub fn new(b: &Aabb, id: u32) -> Self {
+        PrimRef {
+            lo: b.min.extend(f32::from_bits(id)),
+            hi: b.max.extend(0.0),
+        }
+    }
+
+    pub fn id(&self) -> u32 {
+        self.lo.w.to_bits()
+    }
+
+    /// The box: the vectors as they are, no shuffling (the fourth lane is
+    /// ignored by every `Vec3A` operation that matters here).
+    #[inline(always)]
+    fn bounds(&self) -> Aabb {
+        Aabb {
+            min: Vec3::from_vec4(self.lo),
+            max: Vec3::from_vec4(self.hi),
+        }
+    }
+
+    /// Twice the centroid (the factor ½ cancels in every use).
+    #[inline(always)]
+    fn centroid2(&self) -> Vec3 {
+        Vec3::from_vec4(self.lo) + Vec3::from_vec4(self.hi)
+    }
+
+    fn valid(b: &Aabb) -> bool {
+        b.min.is_finite() && b.max.is_finite() && b.min.cmple(b.max).all()
+    }
+}
+
 #[derive(Clone, Copy)]
 struct Bin {
     bounds: Aabb,
+    /// Box of the doubled centroids.
     centroids: Aabb,
     count: u32,
 }
@@ -123,24 +170,36 @@ fn area(b: &Aabb) -> f32 {
 }
 
 impl Bvh {
-    /// Builds a BVH over primitives with the given boxes and centroids.
-    /// Primitives with empty or non-finite boxes are left out.
-    pub fn build(bounds: &[Aabb], centroids: &[Vec3]) -> Bvh {
-        assert_eq!(bounds.len(), centroids.len(), "one centroid per box");
-        let mut indices: Vec<u32> = (0..bounds.len() as u32)
-            .into_par_iter()
-            .filter(|&i| {
-                let b = &bounds[i as usize];
-                b.min.is_finite() && b.max.is_finite() && b.min.cmple(b.max).all()
-            })
+    /// Builds a BVH over primitives with the given boxes (centroids are the
+    /// boxes' centres). Primitives with empty or non-finite boxes are left out.
+    pub fn build(bounds: &[Aabb]) -> Bvh {
+        let refs = bounds
+            .par_iter()
+            .enumerate()
+            .filter(|(_, b)| PrimRef::valid(b))
+            .map(|(i, b)| PrimRef::new(b, i as u32))
             .collect();
-        if indices.is_empty() {
+        Bvh::build_refs(refs)
+    }
+
+    /// Builds from primitive references (consumed: the array is reordered in
+    /// place and its ids become [`Bvh::indices`]).
+    pub fn build_refs(mut refs: Vec<PrimRef>) -> Bvh {
+        if refs.is_empty() {
             return Bvh::default();
         }
-        let (b, cb) = node_bounds(bounds, centroids, &indices);
-        let mut nodes = Vec::with_capacity(2 * indices.len() / 2 + 1);
-        let builder = Builder { bounds, centroids };
-        builder.node(&mut indices, 0, b, cb, &mut nodes);
+        let (b, cb) = node_bounds(&refs);
+        // A binary tree over n leaves' worth of primitives has at most 2n − 1
+        // nodes: reserving that (address space; only written pages become
+        // memory) avoids regrowing and copying a gigabyte-sized array.
+        let mut nodes = Vec::with_capacity(2 * refs.len());
+        // Parallel subtrees down to 1/32 of the whole: enough tasks to keep
+        // every core busy, few enough levels that the copies of right
+        // subtrees into their parent's array stay cheap.
+        let par = PARALLEL_THRESHOLD.max(refs.len() / 32);
+        node(&mut refs, 0, b, cb, &mut nodes, par);
+        nodes.shrink_to_fit();
+        let indices = refs.par_iter().map(PrimRef::id).collect();
         Bvh { nodes, indices }
     }
     /// The primitive at leaf position `k`.
@@ -348,32 +407,26 @@ impl Bvh {
     }
 }
 
-/// Bins `indices` by centroid along `axis` of `cb` (the centroids' box).
-fn bin(
-    bounds: &[Aabb],
-    centroids: &[Vec3],
-    indices: &[u32],
-    cb: &Aabb,
-    axis: usize,
-) -> [Bin; BINS] {
+/// Bins `refs` by centroid along `axis` of `cb` (the doubled centroids' box).
+fn bin(refs: &[PrimRef], cb: &Aabb, axis: usize) -> [Bin; BINS] {
     let scale = BINS as f32 / (cb.max[axis] - cb.min[axis]).max(f32::MIN_POSITIVE);
     let lo = cb.min[axis];
-    let one = |chunk: &[u32]| {
+    let one = |chunk: &[PrimRef]| {
         let mut bins = [EMPTY_BIN; BINS];
-        for &p in chunk {
-            let c = centroids[p as usize];
+        for r in chunk {
+            let c = r.centroid2();
             let k = (((c[axis] - lo) * scale) as usize).min(BINS - 1);
             let bin = &mut bins[k];
-            bin.bounds = bin.bounds.union(&bounds[p as usize]);
+            bin.bounds = bin.bounds.union(&r.bounds());
             bin.centroids = bin.centroids.union(&Aabb { min: c, max: c });
             bin.count += 1;
         }
         bins
     };
-    if indices.len() < PARALLEL_BINNING {
-        return one(indices);
+    if refs.len() < PARALLEL_BINNING {
+        return one(refs);
     }
-    indices.par_chunks(PARALLEL_BINNING / 4).map(one).reduce(
+    refs.par_chunks(PARALLEL_BINNING / 4).map(one).reduce(
         || [EMPTY_BIN; BINS],
         |mut a, b| {
             for k in 0..BINS {
@@ -384,186 +437,174 @@ fn bin(
     )
 }
 
-fn node_bounds(bounds: &[Aabb], centroids: &[Vec3], indices: &[u32]) -> (Aabb, Aabb) {
-    let one = |chunk: &[u32]| {
-        chunk.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), &p| {
-            let cp = centroids[p as usize];
-            (
-                b.union(&bounds[p as usize]),
-                c.union(&Aabb { min: cp, max: cp }),
-            )
+/// The box of the primitives and the box of their doubled centroids.
+fn node_bounds(refs: &[PrimRef]) -> (Aabb, Aabb) {
+    let one = |chunk: &[PrimRef]| {
+        chunk.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), r| {
+            let cp = r.centroid2();
+            (b.union(&r.bounds()), c.union(&Aabb { min: cp, max: cp }))
         })
     };
-    if indices.len() < PARALLEL_BINNING {
-        return one(indices);
+    if refs.len() < PARALLEL_BINNING {
+        return one(refs);
     }
-    indices.par_chunks(PARALLEL_BINNING / 4).map(one).reduce(
+    refs.par_chunks(PARALLEL_BINNING / 4).map(one).reduce(
         || (Aabb::EMPTY, Aabb::EMPTY),
         |a, b| (a.0.union(&b.0), a.1.union(&b.1)),
     )
 }
 
-struct Builder<'a> {
-    bounds: &'a [Aabb],
-    centroids: &'a [Vec3],
-}
-
-impl Builder<'_> {
-    /// Appends the subtree over `indices` (which it reorders into leaf order)
-    /// to `out` in depth-first order, with node indices relative to `out`'s
-    /// start. `b` and `cb` are the boxes of the primitives and of their
-    /// centroids; `first` is the position of `indices[0]` in the whole array.
-    fn node(&self, indices: &mut [u32], first: usize, b: Aabb, cb: Aabb, out: &mut Vec<BvhNode>) {
-        let n = indices.len();
-        let here = out.len();
-        let leaf = |out: &mut Vec<BvhNode>| out.push(BvhNode::new(&b, first as u32, n as u32));
-        if n <= 2 || (cb.max.cmple(cb.min).all() && n <= MAX_LEAF) {
-            return leaf(out);
+/// Appends the subtree over `refs` (reordered in place into leaf order) to
+/// `out` in depth-first order, node indices relative to `out`'s start. `b`
+/// and `cb` are the boxes of the primitives and of their doubled centroids;
+/// `first` is the position of `refs[0]` in the whole array.
+fn node(refs: &mut [PrimRef], first: usize, b: Aabb, cb: Aabb, out: &mut Vec<BvhNode>, par: usize) {
+    let n = refs.len();
+    let here = out.len();
+    let leaf = |out: &mut Vec<BvhNode>| out.push(BvhNode::new(&b, first as u32, n as u32));
+    if n <= 2 || (cb.max.cmple(cb.min).all() && n <= MAX_LEAF) {
+        return leaf(out);
+    }
+    // Binned along the longest axis of the centroids' box only (Wald 2007);
+    // the bins merged on each side give the children's boxes.
+    let axis = (cb.max - cb.min).max_position();
+    let mut best: Option<(f32, usize, Bin, Bin)> = None;
+    if cb.max[axis] > cb.min[axis] {
+        let bins = bin(refs, &cb, axis);
+        let mut right = [EMPTY_BIN; BINS];
+        let mut acc = EMPTY_BIN;
+        for k in (1..BINS).rev() {
+            acc = acc.merge(&bins[k]);
+            right[k] = acc;
         }
-        // The cheapest split over all axes and bin boundaries, with the
-        // bins of each side merged (their boxes are the children's boxes).
-        // Binned along the longest axis of the centroids' box only (Wald 2007).
-        let axis = (cb.max - cb.min).max_position();
-        let bins = bin(self.bounds, self.centroids, indices, &cb, axis);
-        let mut best: Option<(f32, usize, usize, Bin, Bin)> = None;
-        if cb.max[axis] > cb.min[axis] {
-            let mut right = [EMPTY_BIN; BINS];
-            let mut acc = EMPTY_BIN;
-            for k in (1..BINS).rev() {
-                acc = acc.merge(&bins[k]);
-                right[k] = acc;
+        let mut left = EMPTY_BIN;
+        for k in 1..BINS {
+            left = left.merge(&bins[k - 1]);
+            let r = &right[k];
+            if left.count == 0 || r.count == 0 {
+                continue;
             }
-            let mut left = EMPTY_BIN;
-            for k in 1..BINS {
-                left = left.merge(&bins[k - 1]);
-                let r = &right[k];
-                if left.count == 0 || r.count == 0 {
-                    continue;
-                }
-                let cost =
-                    area(&left.bounds) * left.count as f32 + area(&r.bounds) * r.count as f32;
-                if best.as_ref().is_none_or(|b| cost < b.0) {
-                    best = Some((cost, axis, k, left, *r));
-                }
+            let cost = area(&left.bounds) * left.count as f32 + area(&r.bounds) * r.count as f32;
+            if best.as_ref().is_none_or(|b| cost < b.0) {
+                best = Some((cost, k, left, *r));
             }
-        }
-        let split_cost = best.as_ref().map_or(f32::INFINITY, |b| {
-            TRAVERSAL_COST + b.0 / area(&b.3.bounds.union(&b.4.bounds)).max(f32::MIN_POSITIVE)
-        });
-        match best {
-            Some((_, axis, k, lb, rb)) if split_cost < n as f32 || n > MAX_LEAF => {
-                let scale = BINS as f32 / (cb.max[axis] - cb.min[axis]);
-                let mid = partition(indices, |p| {
-                    let c = self.centroids[p as usize][axis];
-                    (((c - cb.min[axis]) * scale) as usize).min(BINS - 1) < k
-                });
-                if mid == 0 || mid == n {
-                    // Rounding put every centroid on one side: split the list.
-                    return self.halves(indices, first, b, out, here);
-                }
-                self.children(
-                    indices,
-                    first,
-                    b,
-                    mid,
-                    (lb.bounds, lb.centroids),
-                    (rb.bounds, rb.centroids),
-                    out,
-                    here,
-                );
-            }
-            _ if n <= MAX_LEAF => leaf(out),
-            // No useful SAH split (e.g. all centroids equal): split the list in half.
-            _ => self.halves(indices, first, b, out, here),
         }
     }
-
-    fn halves(
-        &self,
-        indices: &mut [u32],
-        first: usize,
-        b: Aabb,
-        out: &mut Vec<BvhNode>,
-        here: usize,
-    ) {
-        let mid = indices.len() / 2;
-        let (l, r) = indices.split_at(mid);
-        let left = node_bounds(self.bounds, self.centroids, l);
-        let right = node_bounds(self.bounds, self.centroids, r);
-        self.children(indices, first, b, mid, left, right, out, here);
-    }
-
-    /// The node at `here` with children over `indices[..mid]` and `indices[mid..]`.
-    #[allow(clippy::too_many_arguments)]
-    fn children(
-        &self,
-        indices: &mut [u32],
-        first: usize,
-        b: Aabb,
-        mid: usize,
-        left: (Aabb, Aabb),
-        right: (Aabb, Aabb),
-        out: &mut Vec<BvhNode>,
-        here: usize,
-    ) {
-        out.push(BvhNode::new(&b, 0, 0));
-        let (left_ix, right_ix) = indices.split_at_mut(mid);
-        if indices_len(left_ix, right_ix) > PARALLEL_THRESHOLD {
-            // Both subtrees at once, each into its own array, then appended.
-            let (l, r) = rayon::join(
-                || {
-                    let mut v = Vec::new();
-                    self.node(left_ix, first, left.0, left.1, &mut v);
-                    v
-                },
-                || {
-                    let mut v = Vec::new();
-                    self.node(right_ix, first + mid, right.0, right.1, &mut v);
-                    v
-                },
+    let split_cost = best.as_ref().map_or(f32::INFINITY, |b| {
+        TRAVERSAL_COST + b.0 / area(&b.2.bounds.union(&b.3.bounds)).max(f32::MIN_POSITIVE)
+    });
+    match best {
+        Some((_, k, lb, rb)) if split_cost < n as f32 || n > MAX_LEAF => {
+            let scale = BINS as f32 / (cb.max[axis] - cb.min[axis]);
+            let lo = cb.min[axis];
+            let mid = partition(refs, |r| {
+                ((((r.centroid2()[axis]) - lo) * scale) as usize).min(BINS - 1) < k
+            });
+            if mid == 0 || mid == n {
+                // Rounding put every centroid on one side: split the list.
+                return halves(refs, first, b, out, here, par);
+            }
+            children(
+                refs,
+                first,
+                b,
+                mid,
+                (lb.bounds, lb.centroids),
+                (rb.bounds, rb.centroids),
+                out,
+                here,
+                par,
             );
-            let left_start = out.len();
-            let right_start = left_start + l.len();
-            let shift = |n: &BvhNode, by: usize| {
-                let mut n = *n;
-                if n.count == 0 {
-                    n.offset += by as u32;
-                }
-                n
-            };
-            out.extend(l.iter().map(|n| shift(n, left_start)));
-            out.extend(r.iter().map(|n| shift(n, right_start)));
-            out[here].offset = right_start as u32;
-        } else {
-            self.node(left_ix, first, left.0, left.1, out);
-            let right_start = out.len();
-            self.node(right_ix, first + mid, right.0, right.1, out);
-            out[here].offset = right_start as u32;
         }
+        _ if n <= MAX_LEAF => leaf(out),
+        // No useful SAH split (e.g. all centroids equal): split the list in half.
+        _ => halves(refs, first, b, out, here, par),
     }
 }
 
-fn indices_len(a: &[u32], b: &[u32]) -> usize {
-    a.len() + b.len()
+fn halves(
+    refs: &mut [PrimRef],
+    first: usize,
+    b: Aabb,
+    out: &mut Vec<BvhNode>,
+    here: usize,
+    par: usize,
+) {
+    let mid = refs.len() / 2;
+    let left = node_bounds(&refs[..mid]);
+    let right = node_bounds(&refs[mid..]);
+    children(refs, first, b, mid, left, right, out, here, par);
+}
+
+/// The node at `here` with children over `refs[..mid]` and `refs[mid..]`.
+/// Large ones are built in parallel: the left subtree directly into `out`,
+/// the right one into its own array, appended after (the only copy).
+#[allow(clippy::too_many_arguments)]
+fn children(
+    refs: &mut [PrimRef],
+    first: usize,
+    b: Aabb,
+    mid: usize,
+    left: (Aabb, Aabb),
+    right: (Aabb, Aabb),
+    out: &mut Vec<BvhNode>,
+    here: usize,
+    par: usize,
+) {
+    out.push(BvhNode::new(&b, 0, 0));
+    let parallel = refs.len() > par;
+    let (left_refs, right_refs) = refs.split_at_mut(mid);
+    let right_start = if parallel {
+        let ((), r) = rayon::join(
+            || node(left_refs, first, left.0, left.1, out, par),
+            || {
+                let mut v = Vec::with_capacity(2 * right_refs.len());
+                node(right_refs, first + mid, right.0, right.1, &mut v, par);
+                v
+            },
+        );
+        let right_start = out.len();
+        out.extend(r.iter().map(|n| {
+            let mut n = *n;
+            if n.count == 0 {
+                n.offset += right_start as u32;
+            }
+            n
+        }));
+        right_start
+    } else {
+        node(left_refs, first, left.0, left.1, out, par);
+        let right_start = out.len();
+        node(right_refs, first + mid, right.0, right.1, out, par);
+        right_start
+    };
+    out[here].offset = right_start as u32;
 }
 
 /// Moves the elements satisfying `left` to the front; returns their count.
-fn partition(v: &mut [u32], left: impl Fn(u32) -> bool) -> usize {
-    let mut i = 0;
-    for j in 0..v.len() {
-        if left(v[j]) {
-            v.swap(i, j);
+fn partition(v: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> usize {
+    let (mut i, mut j) = (0, v.len());
+    loop {
+        while i < j && left(&v[i]) {
             i += 1;
         }
+        while i < j && !left(&v[j - 1]) {
+            j -= 1;
+        }
+        if i >= j {
+            return i;
+        }
+        v.swap(i, j - 1);
+        i += 1;
+        j -= 1;
     }
-    i
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn boxes(n: usize, seed: u64) -> (Vec<Aabb>, Vec<Vec3>) {
+    fn boxes(n: usize, seed: u64) -> Vec<Aabb> {
         let mut rng = crate::render::Pcg32::new(seed, 1);
         let mut b = Vec::new();
         for _ in 0..n {
@@ -571,13 +612,12 @@ mod tests {
             let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.3;
             b.push(Aabb::new(c - e, c + e));
         }
-        let c = b.iter().map(|b| (b.min + b.max) * 0.5).collect();
-        (b, c)
+        b
     }
 
     #[test]
     fn empty_and_single_primitive() {
-        let bvh = Bvh::build(&[], &[]);
+        let bvh = Bvh::build(&[]);
         assert!(bvh.nodes.is_empty());
         assert!(
             bvh.closest(
@@ -588,7 +628,7 @@ mod tests {
             .is_none()
         );
         let b = [Aabb::new(Vec3::ONE, Vec3::splat(2.0))];
-        let bvh = Bvh::build(&b, &[Vec3::splat(1.5)]);
+        let bvh = Bvh::build(&b);
         assert_eq!(bvh.nodes.len(), 1);
         bvh.validate(&b).unwrap();
     }
@@ -596,7 +636,7 @@ mod tests {
     #[test]
     fn ray_on_a_slab_plane_with_zero_direction_component() {
         let b = [Aabb::new(Vec3::ZERO, Vec3::ONE)];
-        let bvh = Bvh::build(&b, &[Vec3::splat(0.5)]);
+        let bvh = Bvh::build(&b);
         // Origin on the plane x = 0, moving along z: the boundary counts as inside.
         let ray = Ray::new(Vec3::new(0.0, 0.5, -1.0), Vec3::Z);
         assert!(bvh.any(&ray, &mut Default::default(), |_| true));
@@ -607,8 +647,7 @@ mod tests {
     #[test]
     fn all_centroids_equal_still_builds_small_leaves() {
         let b = vec![Aabb::new(Vec3::ZERO, Vec3::ONE); 1000];
-        let c = vec![Vec3::splat(0.5); 1000];
-        let bvh = Bvh::build(&b, &c);
+        let bvh = Bvh::build(&b);
         bvh.validate(&b).unwrap();
         assert!(bvh.nodes.iter().all(|n| n.count as usize <= MAX_LEAF));
     }
@@ -621,16 +660,15 @@ mod tests {
             max: Vec3::ONE,
         };
         b[5] = Aabb::EMPTY;
-        let c: Vec<Vec3> = b.iter().map(|b| (b.min + b.max) * 0.5).collect();
-        let bvh = Bvh::build(&b, &c);
+        let bvh = Bvh::build(&b);
         bvh.validate(&b).unwrap();
         assert_eq!(bvh.indices.len(), 8);
     }
 
     #[test]
     fn large_random_build_is_valid_and_traversal_matches_brute_force() {
-        let (b, c) = boxes(20_000, 3);
-        let bvh = Bvh::build(&b, &c);
+        let b = boxes(20_000, 3);
+        let bvh = Bvh::build(&b);
         bvh.validate(&b).unwrap();
         let mut rng = crate::render::Pcg32::new(9, 2);
         for _ in 0..2000 {

@@ -8,7 +8,7 @@
 //! Collapse: a binary node's children are expanded, largest surface area
 //! first, until the node has four children or only leaves are left.
 
-use super::bvh::{Bvh, BvhNode, TraversalCounters};
+use super::bvh::{Bvh, TraversalCounters};
 use crate::math::{Aabb, Ray, Vec3};
 use glam::{BVec4A, Vec4};
 
@@ -121,41 +121,44 @@ pub struct Bvh4 {
 
 impl Bvh4 {
     /// Collapses a binary BVH. Leaves keep their primitive ranges, so the
-    /// primitives stay in `bvh`'s leaf order.
+    /// primitives stay in `bvh`'s leaf order. Sequential: it is memory-bound,
+    /// and per-thread arrays would cost more in fresh pages than they save.
     pub fn from_binary(bvh: &Bvh) -> Bvh4 {
         let Some(root) = bvh.nodes.first() else {
             return Bvh4::default();
         };
-        let mut out = Bvh4 {
-            nodes: Vec::with_capacity(bvh.nodes.len() / 3 + 1),
-            bounds: Some(root.bounds()),
-        };
+        let bounds = Some(root.bounds());
         if root.count > 0 {
             // A single leaf: one node with one child.
             let mut n = Bvh4Node::EMPTY_NODE;
             n.set(0, &root.bounds(), LEAF | root.offset, root.count);
-            out.nodes.push(n);
-            return out;
+            return Bvh4 {
+                nodes: vec![n],
+                bounds,
+            };
         }
-        out.nodes.push(Bvh4Node::EMPTY_NODE);
-        let mut todo = vec![(0usize, 0usize)]; // (binary node, wide node)
-        while let Some((b, w)) = todo.pop() {
-            let children = collapse(bvh, b);
+        // About a third of the binary nodes become wide nodes.
+        let mut nodes = Vec::with_capacity(bvh.nodes.len() / 3 + 1);
+        nodes.push(Bvh4Node::EMPTY_NODE);
+        // (binary node's subtree range, wide node to fill)
+        let mut todo = vec![((0usize, bvh.nodes.len()), 0usize)];
+        while let Some((range, w)) = todo.pop() {
+            let (children, len) = collapse(bvh, range);
             let mut node = Bvh4Node::EMPTY_NODE;
-            for (k, &c) in children.iter().enumerate() {
+            for (k, &(c, end)) in children[..len].iter().enumerate() {
                 let child = &bvh.nodes[c];
                 if child.count > 0 {
                     node.set(k, &child.bounds(), LEAF | child.offset, child.count);
                 } else {
-                    let index = out.nodes.len();
-                    out.nodes.push(Bvh4Node::EMPTY_NODE);
+                    let index = nodes.len();
+                    nodes.push(Bvh4Node::EMPTY_NODE);
                     node.set(k, &child.bounds(), index as u32, 0);
-                    todo.push((c, index));
+                    todo.push(((c, end), index));
                 }
             }
-            out.nodes[w] = node;
+            nodes[w] = node;
         }
-        out
+        Bvh4 { nodes, bounds }
     }
 
     /// Bytes of nodes.
@@ -340,29 +343,31 @@ impl Bvh4 {
     }
 }
 
-/// Up to four descendants of binary node `b` that together cover it: its
-/// children, with the interior one of largest surface area replaced by its
-/// own children while there is room.
-fn collapse(bvh: &Bvh, b: usize) -> Vec<usize> {
-    let n = &bvh.nodes[b];
-    let mut children = vec![b + 1, n.offset as usize];
-    while children.len() < 4 {
-        let area = |i: usize| {
-            let e = (bvh.nodes[i].bounds().max - bvh.nodes[i].bounds().min).max(Vec3::ZERO);
-            e.x * e.y + e.y * e.z + e.z * e.x
-        };
-        let Some((k, _)) = children
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| bvh.nodes[**c].count == 0)
-            .max_by(|a, b| area(*a.1).total_cmp(&area(*b.1)))
+/// Up to four descendants of binary node `range.0` that together cover it,
+/// each with the end of its subtree's node range: its children, with the
+/// interior one of largest surface area replaced by its own children while
+/// there is room.
+fn collapse(bvh: &Bvh, range: (usize, usize)) -> ([(usize, usize); 4], usize) {
+    let (b, end) = range;
+    let right = bvh.nodes[b].offset as usize;
+    let mut children = [(b + 1, right), (right, end), (0, 0), (0, 0)];
+    let mut len = 2;
+    let area = |i: usize| {
+        let e = (bvh.nodes[i].bounds().max - bvh.nodes[i].bounds().min).max(Vec3::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    };
+    while len < 4 {
+        let Some(k) = (0..len)
+            .filter(|&k| bvh.nodes[children[k].0].count == 0)
+            .max_by(|&x, &y| area(children[x].0).total_cmp(&area(children[y].0)))
         else {
             break;
         };
-        let c = children.remove(k);
-        let cn: &BvhNode = &bvh.nodes[c];
-        children.push(c + 1);
-        children.push(cn.offset as usize);
+        let (c, c_end) = children[k];
+        let c_right = bvh.nodes[c].offset as usize;
+        children[k] = (c + 1, c_right);
+        children[len] = (c_right, c_end);
+        len += 1;
     }
-    children
+    (children, len)
 }

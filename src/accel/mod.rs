@@ -4,5 +4,5 @@
 mod bvh;
 mod bvh4;
 
-pub use bvh::{Bvh, BvhNode, TraversalCounters};
+pub use bvh::{Bvh, BvhNode, PrimRef, TraversalCounters};
 pub use bvh4::{Bvh4, Bvh4Node};

@@ -3,7 +3,7 @@
 
 use super::triangle::{intersect_mt, intersect_watertight};
 use super::{ShapeHit, SurfacePoint, TraceCounters};
-use crate::accel::{Bvh, Bvh4};
+use crate::accel::{Bvh, Bvh4, PrimRef};
 use crate::math::{Aabb, Ray, Transform, Vec3, gamma};
 use glam::{Affine3A, Mat3A, Vec2};
 use rayon::prelude::*;
@@ -75,20 +75,26 @@ impl Mesh {
                 count,
             });
         }
-        let (bounds, centroids): (Vec<Aabb>, Vec<Vec3>) = triangles
+        let refs: Vec<PrimRef> = triangles
             .par_iter()
-            .map(|t| {
+            .enumerate()
+            .map(|(i, t)| {
                 let [a, b, c] = t.map(|i| Vec3::from(positions[i as usize]));
-                let bb = Aabb::new(a.min(b).min(c), a.max(b).max(c));
-                (bb, (bb.min + bb.max) * 0.5)
+                PrimRef::new(&Aabb::new(a.min(b).min(c), a.max(b).max(c)), i as u32)
             })
-            .unzip();
-        let binary = Bvh::build(&bounds, &centroids);
-        let triangles = binary
+            .collect();
+        let binary = Bvh::build_refs(refs);
+        // Triangles in leaf order; the old order is dropped at once.
+        let triangles: Vec<[u32; 3]> = binary
             .indices
             .par_iter()
             .map(|&i| triangles[i as usize])
             .collect();
+        let Bvh { nodes, .. } = binary;
+        let binary = Bvh {
+            nodes,
+            indices: Vec::new(),
+        };
         let bvh = Bvh4::from_binary(&binary);
         Ok(Mesh {
             positions,

@@ -6,6 +6,7 @@ mod camera;
 mod light;
 mod load;
 mod material;
+mod mesh_scene;
 pub mod meshio;
 mod texture;
 
@@ -13,6 +14,7 @@ pub use camera::Camera;
 pub use light::Light;
 pub use load::{BUILTIN_WHITTED, SceneError, SceneFile, load_scene_file, parse_scene};
 pub use material::{Fresnel, Material, MaterialKind, fresnel_dielectric, reflect, refract};
+pub use mesh_scene::mesh_scene;
 pub use texture::{CheckerMode, Texture};
 
 use crate::accel::{Bvh, TraversalCounters};
@@ -115,9 +117,8 @@ impl Scene {
         let unbounded = (0..objects.len() as u32)
             .filter(|&i| !finite(&bounds[i as usize]))
             .collect();
-        let centroids: Vec<Vec3> = bounds.iter().map(|b| (b.min + b.max) * 0.5).collect();
         // Infinite boxes are left out of the BVH by its builder.
-        let tlas = Bvh::build(&bounds, &centroids);
+        let tlas = Bvh::build(&bounds);
         let objects_len = objects.len();
         Scene {
             camera,

@@ -65,14 +65,13 @@ impl RawMesh {
 
     /// Builds the mesh and its BVH.
     pub fn build(self, path: &Path) -> Result<Mesh, MeshError> {
-        let face = |t: usize| format!("face {}", self.face_of_triangle(t));
-        Mesh::new(
-            self.positions.clone(),
-            self.triangles.clone(),
-            self.normals.clone(),
-            self.uvs.clone(),
-        )
-        .map_err(|e| match e {
+        // Moved, not copied; only the polygon table is kept to name faces.
+        let polygons = RawMesh {
+            polygons: self.polygons,
+            ..RawMesh::default()
+        };
+        let face = |t: usize| format!("face {}", polygons.face_of_triangle(t));
+        Mesh::new(self.positions, self.triangles, self.normals, self.uvs).map_err(|e| match e {
             MeshDataError::IndexOutOfRange { triangle, .. } => {
                 MeshError::new(path, &face(triangle), e.to_string())
             }
