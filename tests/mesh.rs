@@ -262,3 +262,116 @@ fn instance_renders_like_the_baked_mesh() {
     // Silhouette pixels may flip where a ray grazes an edge to within rounding.
     assert!(differ <= lit / 200, "{differ} of {lit} pixels differ");
 }
+
+/// A PLY file of a generated mesh, written with the binary little-endian layout.
+fn write_ply(path: &std::path::Path, (v, f): &(Vec<V3>, Vec<[u32; 3]>)) {
+    let mut out = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        v.len(),
+        f.len()
+    )
+    .into_bytes();
+    for p in v {
+        for c in p.to_array() {
+            out.extend(c.to_le_bytes());
+        }
+    }
+    for t in f {
+        out.push(3);
+        for i in t {
+            out.extend(i.to_le_bytes());
+        }
+    }
+    std::fs::write(path, out).unwrap();
+}
+
+/// 1,000 instances of one 20,480-triangle mesh in a scene file: the mesh is
+/// read and stored once, and every instance renders.
+#[test]
+fn thousand_instances_share_one_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    write_ply(&dir.path().join("ball.ply"), &icosphere(5, 0.4));
+    let mut scene = String::from(
+        "[camera]\nposition = [4.5, 4.5, -14]\nlook_at = [4.5, 4.5, 4.5]\n[render]\nwidth = 64\nheight = 48\nintegrator = \"raycast\"\n\
+         [[light]]\ntype = \"directional\"\ndirection = [0.3, -1, 0.5]\nirradiance = 1\n",
+    );
+    for i in 0..1000 {
+        let (x, y, z) = (i % 10, i / 10 % 10, i / 100);
+        scene += &format!(
+            "[[object]]\nshape = \"mesh\"\nfile = \"ball.ply\"\ntransform = {{ scale = [1, {}, 1], rotate_y = {}, translate = [{x}, {y}, {z}] }}\n",
+            1.0 + 0.1 * (i % 3) as f32,
+            i % 90
+        );
+    }
+    std::fs::write(dir.path().join("s.toml"), scene).unwrap();
+    let file =
+        glint::scene::load_scene_file(&dir.path().join("s.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let g = file.scene.geometry_stats();
+    assert_eq!(
+        (g.meshes, g.instances, g.triangles, g.triangles_instanced),
+        (1, 1000, 20_480, 20_480_000)
+    );
+    // The memory of one mesh (about 53 bytes per triangle), not a thousand.
+    assert!(g.mesh_bytes < 20_480 * 64, "{} bytes", g.mesh_bytes);
+    let (image, stats) = render(&file.scene, &file.settings, &|_| {}).unwrap();
+    let lit = image.pixels.iter().filter(|c| c.x > 0.0).count();
+    assert!(lit > 64 * 48 / 5, "{lit} lit pixels");
+    // The top-level BVH culls: far fewer than 1,000 object tests per ray.
+    assert!(
+        stats.intersection_tests < stats.rays_total * 40,
+        "{} tests for {} rays",
+        stats.intersection_tests,
+        stats.rays_total
+    );
+}
+
+/// Rays spawned from hits on transformed instances (non-uniform scale,
+/// rotation, translation) towards a light never hit the same instance again
+/// at t ≈ 0: the error bound covers the rounding of taking the ray back into
+/// the instance's object space. (The instances of
+/// `thousand_instances_share_one_mesh`, whose render showed shadow acne
+/// before that term was added.)
+#[test]
+fn spawned_rays_leave_transformed_instances() {
+    let ball = Arc::new(mesh(icosphere(5, 0.4)));
+    let light = -Vec3::new(0.3, -1.0, 0.5).normalize();
+    let mut rng = Pcg32::new(3, 3);
+    let (mut tested, mut rehits) = (0, 0);
+    for i in 0..1000 {
+        let (x, y, z) = ((i % 10) as f64, (i / 10 % 10) as f64, (i / 100) as f64);
+        let t = Transform::from_parts(
+            DVec3::new(1.0, 1.0 + 0.1 * (i % 3) as f64, 1.0),
+            DVec3::new(0.0, (i % 90) as f64, 0.0),
+            DVec3::new(x, y, z),
+        )
+        .unwrap();
+        let inst = MeshInstance::new(ball.clone(), Some(&t));
+        let centre = Vec3::new(x as f32, y as f32, z as f32);
+        for _ in 0..40 {
+            let o = centre + Vec3::new(0.0, 0.0, -3.0) + random_in(&mut rng, 0.5);
+            let ray = Ray::new(o, centre + random_in(&mut rng, 0.4) - o);
+            let mut c = TraceCounters::default();
+            let Some(h) = inst.intersect(&ray, &mut c) else {
+                continue;
+            };
+            let s = inst.surface(&ray, &h);
+            if s.n.dot(light) <= 0.0 {
+                continue;
+            }
+            tested += 1;
+            let out = Ray::spawn(s.p, s.p_err, s.n, light);
+            if inst
+                .intersect(&out, &mut c)
+                .is_some_and(|again| again.t < 1e-3)
+            {
+                rehits += 1;
+            }
+        }
+    }
+    assert!(tested > 10_000, "{tested}");
+    assert_eq!(
+        rehits, 0,
+        "{rehits} of {tested} shadow rays hit their own surface again"
+    );
+}

@@ -274,6 +274,10 @@ struct InstanceTransform {
     normal_to_world: Mat3A,
     /// |linear part|, for carrying error bounds to world space.
     abs_linear: Mat3A,
+    /// |inverse linear part| and |inverse translation|, for the rounding of
+    /// rays taken back into object space.
+    abs_inverse: Mat3A,
+    abs_inverse_translation: Vec3,
 }
 
 impl MeshInstance {
@@ -284,12 +288,16 @@ impl MeshInstance {
                 t.world_from_object.translation.as_vec3(),
             );
             let m = w.matrix3;
+            let inverse = Affine3A::from_mat3_translation(
+                t.object_from_world.matrix3.as_mat3(),
+                t.object_from_world.translation.as_vec3(),
+            );
+            let mi = inverse.matrix3;
             Box::new(InstanceTransform {
                 world_from_object: w,
-                object_from_world: Affine3A::from_mat3_translation(
-                    t.object_from_world.matrix3.as_mat3(),
-                    t.object_from_world.translation.as_vec3(),
-                ),
+                object_from_world: inverse,
+                abs_inverse: Mat3A::from_cols(mi.x_axis.abs(), mi.y_axis.abs(), mi.z_axis.abs()),
+                abs_inverse_translation: inverse.translation.abs(),
                 normal_to_world: Mat3A::from(t.normal_to_world.as_mat3()),
                 abs_linear: Mat3A::from_cols(m.x_axis.abs(), m.y_axis.abs(), m.z_axis.abs()),
             })
@@ -347,11 +355,16 @@ impl MeshInstance {
             None => s,
             Some(x) => {
                 let p = x.world_from_object.transform_point3a(s.p);
+                // The object-space bound carried through |M|, plus the rounding
+                // of the transform itself (pbrt-v4 §6.8.6), plus the rounding
+                // a spawned ray's origin meets when it is taken back into this
+                // instance's object space (γ(3)(|M⁻¹||p| + |t⁻¹|) there, times
+                // |M| here), so that the offset origin stays off the surface
+                // in both spaces.
+                let back = gamma(3) * (x.abs_inverse * p.abs() + x.abs_inverse_translation);
                 SurfacePoint {
                     p,
-                    // The object-space bound carried through |M|, plus the
-                    // rounding of the transform itself (pbrt-v4 §6.8.6).
-                    p_err: x.abs_linear * s.p_err
+                    p_err: x.abs_linear * (s.p_err + back)
                         + gamma(3)
                             * (x.abs_linear * s.p.abs() + x.world_from_object.translation.abs()),
                     n: (x.normal_to_world * s.n).normalize_or_zero(),
