@@ -175,3 +175,81 @@ fn errors_are_clear_and_leave_no_file() {
         .collect();
     assert_eq!(names, vec![std::ffi::OsString::from("bad.toml")]);
 }
+
+/// An ASCII PLY octahedron.
+const OCTAHEDRON: &str = "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n\
+element face 8\nproperty list uchar int vertex_indices\nend_header\n\
+1 0 0\n-1 0 0\n0 1 0\n0 -1 0\n0 0 1\n0 0 -1\n\
+3 0 2 4\n3 2 1 4\n3 1 3 4\n3 3 0 4\n3 2 0 5\n3 1 2 5\n3 3 1 5\n3 0 3 5\n";
+
+#[test]
+fn info_and_rendering_a_mesh_file() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("oct.ply"), OCTAHEDRON).unwrap();
+    let out = glint(dir.path(), &["info", "oct.ply"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("triangles    8") && text.contains("vertices     6"),
+        "{text}"
+    );
+    assert!(text.contains("bytes per triangle"), "{text}");
+
+    let out = glint(
+        dir.path(),
+        &[
+            "render",
+            "oct.ply",
+            "--width",
+            "48",
+            "--height",
+            "32",
+            "--view=-0.3,1,0.2",
+            "--up",
+            "0,0,1",
+            "--stats-json",
+            "s.json",
+            "-q",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let img = image::open(dir.path().join("oct.png")).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (48, 32));
+    assert!(img.pixels().any(|p| p[0] > 50), "the mesh is lit");
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("s.json")).unwrap()).unwrap();
+    assert_eq!(v["triangles"], 8);
+    assert_eq!(v["instances"], 1);
+    for k in [
+        "seconds_load",
+        "seconds_build",
+        "bvh_bytes",
+        "bvh_nodes_visited",
+        "bytes_per_triangle",
+    ] {
+        assert!(v[k].as_f64().is_some(), "{k}");
+    }
+    assert!(v["peak_rss_bytes"].as_u64().unwrap_or(1) > 0);
+
+    std::fs::write(
+        dir.path().join("bad.ply"),
+        OCTAHEDRON.replace("3 0 3 5", "3 0 3 9"),
+    )
+    .unwrap();
+    let out = glint(dir.path(), &["info", "bad.ply"]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("bad.ply: face 7: vertex index out of range"),
+        "{}",
+        stderr(&out)
+    );
+    let out = glint(
+        dir.path(),
+        &["render", "oct.ply", "--view", "0,1,0", "--up", "0,2,0"],
+    );
+    assert!(
+        stderr(&out).contains("must be non-zero and not parallel"),
+        "{}",
+        stderr(&out)
+    );
+}
