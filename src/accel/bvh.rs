@@ -19,6 +19,11 @@ const BINS: usize = 16;
 const MAX_LEAF: usize = 8;
 /// Cost of a traversal step relative to one primitive test.
 const TRAVERSAL_COST: f32 = 1.0;
+/// Depth below which splits are chosen by SAH (see `node`).
+const MAX_SAH_DEPTH: usize = 40;
+/// A bound on the depth of any tree, MAX_SAH_DEPTH plus log2 of the largest
+/// primitive count (2^32), for the traversal stacks.
+pub(crate) const MAX_DEPTH: usize = MAX_SAH_DEPTH + 33;
 /// Nodes with more primitives than this build their children in parallel.
 const PARALLEL_THRESHOLD: usize = 4096;
 /// Nodes with more primitives than this bin them in parallel chunks.
@@ -81,7 +86,9 @@ pub struct Bvh {
 /// `1/d` with infinities (zero direction components) replaced by ±1e30, so
 /// that the slab test's `(plane − o)·(1/d)` is never `0·∞ = NaN` when the
 /// origin lies on a slab plane; for any other origin the product is still
-/// huge with the right sign, as with ∞ (obvhs `safe_inverse`).
+/// huge with the right sign, as with ∞ (obvhs `safe_inverse`). The price: a
+/// ray parallel to an axis ends, for the BVH, near `t = 1e30·(distance to
+/// the slab)`, far beyond any scene f32 coordinates can describe sensibly.
 #[inline(always)]
 fn safe_inv_d(ray: &Ray) -> Vec3 {
     ray.d.recip().clamp(Vec3::splat(-1e30), Vec3::splat(1e30))
@@ -197,7 +204,17 @@ impl Bvh {
         // every core busy, few enough levels that the copies of right
         // subtrees into their parent's array stay cheap.
         let par = PARALLEL_THRESHOLD.max(refs.len() / 32);
-        node(&mut refs, 0, b, cb, &mut nodes, par);
+        node(
+            Task {
+                refs: &mut refs,
+                first: 0,
+                bounds: b,
+                centroids: cb,
+                depth: 0,
+            },
+            &mut nodes,
+            par,
+        );
         nodes.shrink_to_fit();
         let indices = refs.par_iter().map(PrimRef::id).collect();
         Bvh { nodes, indices }
@@ -238,7 +255,7 @@ impl Bvh {
         let inv_d = safe_inv_d(ray);
         let mut t_max = ray.t_max;
         let mut best = None;
-        let mut stack = [0u32; 64];
+        let mut stack = [0u32; MAX_DEPTH + 1];
         let mut len = 0;
         let mut node = 0usize;
         let (mut visited, mut tests) = (1u64, 0u64);
@@ -312,7 +329,8 @@ impl Bvh {
             return false;
         }
         let inv_d = safe_inv_d(ray);
-        let mut stack = [0u32; 64];
+        // Each visit pops one node and pushes two.
+        let mut stack = [0u32; MAX_DEPTH + 2];
         let mut len = 1;
         let (mut visited, mut tests) = (0u64, 0u64);
         let mut found = false;
@@ -454,16 +472,38 @@ fn node_bounds(refs: &[PrimRef]) -> (Aabb, Aabb) {
     )
 }
 
-/// Appends the subtree over `refs` (reordered in place into leaf order) to
-/// `out` in depth-first order, node indices relative to `out`'s start. `b`
-/// and `cb` are the boxes of the primitives and of their doubled centroids;
-/// `first` is the position of `refs[0]` in the whole array.
-fn node(refs: &mut [PrimRef], first: usize, b: Aabb, cb: Aabb, out: &mut Vec<BvhNode>, par: usize) {
+/// The primitives of one subtree under construction and where it goes.
+struct Task<'a> {
+    refs: &'a mut [PrimRef],
+    /// Position of `refs[0]` in the whole array.
+    first: usize,
+    /// Boxes of the primitives and of their doubled centroids.
+    bounds: Aabb,
+    centroids: Aabb,
+    depth: usize,
+}
+
+/// Appends the subtree of `task` (its primitives reordered in place into leaf
+/// order) to `out` in depth-first order, node indices relative to `out`'s
+/// start. Subtrees of more than `par` primitives are built in parallel.
+fn node(task: Task, out: &mut Vec<BvhNode>, par: usize) {
+    let Task {
+        refs,
+        first,
+        bounds: b,
+        centroids: cb,
+        depth,
+    } = task;
     let n = refs.len();
-    let here = out.len();
     let leaf = |out: &mut Vec<BvhNode>| out.push(BvhNode::new(&b, first as u32, n as u32));
     if n <= 2 || (cb.max.cmple(cb.min).all() && n <= MAX_LEAF) {
         return leaf(out);
+    }
+    // Past MAX_SAH_DEPTH only median splits: the depth of any tree stays
+    // below MAX_SAH_DEPTH + log2(n), which bounds the builder's recursion and
+    // the traversal stacks whatever the input.
+    if depth >= MAX_SAH_DEPTH {
+        return halves(refs, first, b, depth, out, par);
     }
     // Binned along the longest axis of the centroids' box only (Wald 2007);
     // the bins merged on each side give the children's boxes.
@@ -498,27 +538,26 @@ fn node(refs: &mut [PrimRef], first: usize, b: Aabb, cb: Aabb, out: &mut Vec<Bvh
             let scale = BINS as f32 / (cb.max[axis] - cb.min[axis]);
             let lo = cb.min[axis];
             let mid = partition(refs, |r| {
-                ((((r.centroid2()[axis]) - lo) * scale) as usize).min(BINS - 1) < k
+                (((r.centroid2()[axis] - lo) * scale) as usize).min(BINS - 1) < k
             });
             if mid == 0 || mid == n {
                 // Rounding put every centroid on one side: split the list.
-                return halves(refs, first, b, out, here, par);
+                return halves(refs, first, b, depth, out, par);
             }
             children(
                 refs,
                 first,
                 b,
+                depth,
                 mid,
-                (lb.bounds, lb.centroids),
-                (rb.bounds, rb.centroids),
+                [(lb.bounds, lb.centroids), (rb.bounds, rb.centroids)],
                 out,
-                here,
                 par,
             );
         }
         _ if n <= MAX_LEAF => leaf(out),
         // No useful SAH split (e.g. all centroids equal): split the list in half.
-        _ => halves(refs, first, b, out, here, par),
+        _ => halves(refs, first, b, depth, out, par),
     }
 }
 
@@ -526,40 +565,56 @@ fn halves(
     refs: &mut [PrimRef],
     first: usize,
     b: Aabb,
+    depth: usize,
     out: &mut Vec<BvhNode>,
-    here: usize,
     par: usize,
 ) {
     let mid = refs.len() / 2;
-    let left = node_bounds(&refs[..mid]);
-    let right = node_bounds(&refs[mid..]);
-    children(refs, first, b, mid, left, right, out, here, par);
+    let sides = [node_bounds(&refs[..mid]), node_bounds(&refs[mid..])];
+    children(refs, first, b, depth, mid, sides, out, par);
 }
 
-/// The node at `here` with children over `refs[..mid]` and `refs[mid..]`.
-/// Large ones are built in parallel: the left subtree directly into `out`,
-/// the right one into its own array, appended after (the only copy).
+/// The node over `refs` with children over `refs[..mid]` and `refs[mid..]`
+/// (`sides`: their boxes and centroid boxes). Large ones are built in
+/// parallel: the left subtree directly into `out`, the right one into its own
+/// array, appended after (the only copy).
 #[allow(clippy::too_many_arguments)]
 fn children(
     refs: &mut [PrimRef],
     first: usize,
     b: Aabb,
+    depth: usize,
     mid: usize,
-    left: (Aabb, Aabb),
-    right: (Aabb, Aabb),
+    sides: [(Aabb, Aabb); 2],
     out: &mut Vec<BvhNode>,
-    here: usize,
     par: usize,
 ) {
+    let here = out.len();
     out.push(BvhNode::new(&b, 0, 0));
     let parallel = refs.len() > par;
     let (left_refs, right_refs) = refs.split_at_mut(mid);
+    let [(lb, lc), (rb, rc)] = sides;
+    let left = Task {
+        refs: left_refs,
+        first,
+        bounds: lb,
+        centroids: lc,
+        depth: depth + 1,
+    };
+    let right_len = right_refs.len();
+    let right = Task {
+        refs: right_refs,
+        first: first + mid,
+        bounds: rb,
+        centroids: rc,
+        depth: depth + 1,
+    };
     let right_start = if parallel {
         let ((), r) = rayon::join(
-            || node(left_refs, first, left.0, left.1, out, par),
+            || node(left, out, par),
             || {
-                let mut v = Vec::with_capacity(2 * right_refs.len());
-                node(right_refs, first + mid, right.0, right.1, &mut v, par);
+                let mut v = Vec::with_capacity(2 * right_len);
+                node(right, &mut v, par);
                 v
             },
         );
@@ -573,9 +628,9 @@ fn children(
         }));
         right_start
     } else {
-        node(left_refs, first, left.0, left.1, out, par);
+        node(left, out, par);
         let right_start = out.len();
-        node(right_refs, first + mid, right.0, right.1, out, par);
+        node(right, out, par);
         right_start
     };
     out[here].offset = right_start as u32;
@@ -642,6 +697,55 @@ mod tests {
         assert!(bvh.any(&ray, &mut Default::default(), |_| true));
         let ray = Ray::new(Vec3::new(-1e-3, 0.5, -1.0), Vec3::Z);
         assert!(!bvh.any(&ray, &mut Default::default(), |_| true));
+    }
+
+    fn depth(bvh: &Bvh) -> usize {
+        let mut deepest = 0;
+        let mut stack = vec![(0usize, 1usize)];
+        while let Some((i, d)) = stack.pop() {
+            deepest = deepest.max(d);
+            let n = &bvh.nodes[i];
+            if n.count == 0 {
+                stack.push((i + 1, d + 1));
+                stack.push((n.offset as usize, d + 1));
+            }
+        }
+        deepest
+    }
+
+    #[test]
+    fn skewed_distributions_keep_the_tree_shallow() {
+        // Centroids at 1.6^i: at every level all but the largest few fall
+        // into the first of the 16 bins. (Up to 1.6^139 ≈ 2e28: rays reach
+        // t ≈ 5e29 along axes they are parallel to, see `safe_inv_d`.)
+        let b: Vec<Aabb> = (0..140)
+            .map(|i| {
+                let x = 1.6f32.powi(i);
+                Aabb::new(Vec3::new(x, 0.0, 0.0), Vec3::new(x * 1.25, 1.0, 1.0))
+            })
+            .collect();
+        let bvh = Bvh::build(&b);
+        bvh.validate(&b).unwrap();
+        let d = depth(&bvh);
+        assert!(d <= MAX_DEPTH, "depth {d}");
+        // Traversal along the row of boxes visits the deepest paths.
+        let ray = Ray::new(Vec3::new(-1.0, 0.5, 0.5), Vec3::X);
+        let inv = ray.inv_d();
+        let t_of = |p: u32| b[p as usize].slab(ray.o, inv).map(|h| h.t_enter.max(0.0));
+        let hit = bvh.closest(&ray, &mut TraversalCounters::default(), |p, t_max| {
+            t_of(p).filter(|&t| t < t_max)
+        });
+        let brute = (0..b.len() as u32)
+            .filter_map(t_of)
+            .fold(f32::INFINITY, f32::min);
+        assert_eq!(hit.map(|h| h.1), Some(brute));
+        assert!(bvh.any(&ray, &mut TraversalCounters::default(), |p| p == 139));
+        let wide = super::super::Bvh4::from_binary(&bvh);
+        assert!(
+            wide.any(&ray, &mut TraversalCounters::default(), |p| bvh.indices
+                [p as usize]
+                == 139)
+        );
     }
 
     #[test]

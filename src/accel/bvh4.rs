@@ -8,7 +8,7 @@
 //! Collapse: a binary node's children are expanded, largest surface area
 //! first, until the node has four children or only leaves are left.
 
-use super::bvh::{Bvh, TraversalCounters};
+use super::bvh::{Bvh, MAX_DEPTH, TraversalCounters};
 use crate::math::{Aabb, Ray, Vec3};
 use glam::{BVec4A, Vec4};
 
@@ -182,7 +182,8 @@ impl Bvh4 {
         let mut t_max = ray.t_max;
         let mut best = None;
         // Stack of (node, entry distance).
-        let mut stack = [(0u32, 0f32); 96];
+        // Each visit pops one node and pushes at most four: 3 per level.
+        let mut stack = [(0u32, 0f32); 3 * MAX_DEPTH + 2];
         let mut len = 1;
         stack[0] = (0, ray.t_min);
         let (mut visited, mut tests) = (0u64, 0u64);
@@ -252,7 +253,7 @@ impl Bvh4 {
             return false;
         }
         let lanes = RayLanes::new(ray);
-        let mut stack = [0u32; 96];
+        let mut stack = [0u32; 3 * MAX_DEPTH + 2];
         let mut len = 1;
         let (mut visited, mut tests) = (0u64, 0u64);
         let mut found = false;
