@@ -181,60 +181,67 @@ impl Bvh4 {
         let lanes = RayLanes::new(ray);
         let mut t_max = ray.t_max;
         let mut best = None;
-        // Stack of (node, entry distance).
-        // Each visit pops one node and pushes at most four: 3 per level.
+        // Stack of (node, entry distance) for children not visited yet.
+        // Each visit pushes at most three: 3 per level.
         let mut stack = [(0u32, 0f32); 3 * MAX_DEPTH + 2];
-        let mut len = 1;
-        stack[0] = (0, ray.t_min);
+        let mut len = 0;
+        let mut index = 0u32;
         let (mut visited, mut tests) = (0u64, 0u64);
-        while len > 0 {
-            len -= 1;
-            let (index, t_enter) = stack[len];
-            if t_enter > t_max {
-                continue;
-            }
+        'visit: loop {
             let node = &self.nodes[index as usize];
             visited += 1;
             let (t, mask) = lanes.test(node, t_max);
+            // Leaf children first, each pruning by the closest hit so far;
+            // then the nearest interior child is visited next without going
+            // through the stack, and the others are pushed. One interior child
+            // hit (the common case deep in the tree) costs no stack traffic.
             let mut bits = mask.bitmask();
-            if bits == 0 {
-                continue;
-            }
-            // Hit children, sorted far to near, so the nearest is pushed last.
-            let mut hits = [(0u32, 0u32, 0f32); 4];
-            let mut n = 0;
+            let mut next: Option<(u32, f32)> = None;
             while bits != 0 {
                 let k = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                let mut j = n;
-                while j > 0 && hits[j - 1].2 < t[k] {
-                    hits[j] = hits[j - 1];
-                    j -= 1;
-                }
-                hits[j] = (node.child[k], node.count[k], t[k]);
-                n += 1;
-            }
-            // Interior children go on the stack far to near (nearest on top);
-            // leaf children are tested at once, near to far, each pruning by
-            // the closest hit so far.
-            for &(child, _, tc) in &hits[..n] {
-                if child & LEAF == 0 {
-                    stack[len] = (child, tc);
-                    len += 1;
-                }
-            }
-            for &(child, count, tc) in hits[..n].iter().rev() {
-                if child & LEAF != 0 && tc <= t_max {
+                let child = node.child[k];
+                if child & LEAF != 0 {
                     let first = child & !LEAF;
-                    for prim in first..first + count {
+                    for prim in first..first + node.count[k] {
                         tests += 1;
                         if let Some(th) = test(prim, t_max) {
                             t_max = th;
                             best = Some((prim, th));
                         }
                     }
+                } else {
+                    let tc = t[k];
+                    match next {
+                        None => next = Some((child, tc)),
+                        Some((c, tn)) if tc < tn => {
+                            stack[len] = (c, tn);
+                            len += 1;
+                            next = Some((child, tc));
+                        }
+                        Some(_) => {
+                            stack[len] = (child, tc);
+                            len += 1;
+                        }
+                    }
                 }
             }
+            if let Some((c, tc)) = next
+                && tc <= t_max
+            {
+                index = c;
+                continue;
+            }
+            // Pop, skipping nodes now beyond the closest hit.
+            while len > 0 {
+                len -= 1;
+                let (c, tc) = stack[len];
+                if tc <= t_max {
+                    index = c;
+                    continue 'visit;
+                }
+            }
+            break;
         }
         counters.nodes_visited += visited;
         counters.primitive_tests += tests;
@@ -254,15 +261,18 @@ impl Bvh4 {
         }
         let lanes = RayLanes::new(ray);
         let mut stack = [0u32; 3 * MAX_DEPTH + 2];
-        let mut len = 1;
+        let mut len = 0;
+        let mut index = 0u32;
         let (mut visited, mut tests) = (0u64, 0u64);
         let mut found = false;
-        'outer: while len > 0 {
-            len -= 1;
-            let node = &self.nodes[stack[len] as usize];
+        'visit: loop {
+            let node = &self.nodes[index as usize];
             visited += 1;
             let (_, mask) = lanes.test(node, ray.t_max);
             let mut bits = mask.bitmask();
+            // Leaves at once; of the interior children, the last is visited
+            // next without going through the stack, the others are pushed.
+            let mut next = None;
             while bits != 0 {
                 let k = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
@@ -273,14 +283,25 @@ impl Bvh4 {
                         tests += 1;
                         if test(prim) {
                             found = true;
-                            break 'outer;
+                            break 'visit;
                         }
                     }
                 } else {
-                    stack[len] = child;
-                    len += 1;
+                    if let Some(previous) = next {
+                        stack[len] = previous;
+                        len += 1;
+                    }
+                    next = Some(child);
                 }
             }
+            index = match next {
+                Some(c) => c,
+                None if len > 0 => {
+                    len -= 1;
+                    stack[len]
+                }
+                None => break,
+            };
         }
         counters.nodes_visited += visited;
         counters.primitive_tests += tests;
