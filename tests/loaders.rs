@@ -147,6 +147,13 @@ fn ply_errors_name_the_element() {
         e.contains("nan.ply: vertex 0") && e.contains("non-finite"),
         "{e}"
     );
+    // No faces at all.
+    let mut empty = ply_header("binary_little_endian", 0).into_bytes();
+    empty.extend(&binary_ply(false)[header..header + 4 * 24]);
+    let e = load_mesh_file(&write(dir.path(), "empty.ply", &empty))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("empty.ply: file: holds no triangles"), "{e}");
     // Missing file.
     let e = load_mesh_file(&dir.path().join("none.ply"))
         .unwrap_err()

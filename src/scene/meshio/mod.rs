@@ -130,7 +130,7 @@ pub fn load_mesh_file(path: &Path) -> Result<Model, MeshError> {
         return Err(MeshError::new(path, "file", "not found"));
     }
     let start = Instant::now();
-    match ext.as_str() {
+    let model = match ext.as_str() {
         "ply" => {
             let raw = ply::read(path)?;
             let seconds_load = start.elapsed().as_secs_f64();
@@ -158,5 +158,10 @@ pub fn load_mesh_file(path: &Path) -> Result<Model, MeshError> {
             "file",
             format!("unknown mesh format `.{ext}`; expected .ply, .obj, .gltf or .glb"),
         )),
+    }?;
+    // A file without triangles would render nothing and frame no camera.
+    if model.triangles() == 0 {
+        return Err(MeshError::new(path, "file", "holds no triangles"));
     }
+    Ok(model)
 }
