@@ -740,7 +740,7 @@ mod tests {
             .fold(f32::INFINITY, f32::min);
         assert_eq!(hit.map(|h| h.1), Some(brute));
         assert!(bvh.any(&ray, &mut TraversalCounters::default(), |p| p == 139));
-        let wide = super::super::Bvh4::from_binary(&bvh);
+        let wide = super::super::Bvh8::from_binary(&bvh);
         assert!(
             wide.any(&ray, &mut TraversalCounters::default(), |p| bvh.indices
                 [p as usize]

@@ -2,7 +2,7 @@
 //! code serves a mesh's triangles and the scene's objects.
 
 mod bvh;
-mod bvh4;
+mod bvh8;
 
 pub use bvh::{Bvh, BvhNode, PrimRef, TraversalCounters};
-pub use bvh4::{Bvh4, Bvh4Node};
+pub use bvh8::{Bvh8, Bvh8Node};

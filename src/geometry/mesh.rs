@@ -3,7 +3,7 @@
 
 use super::triangle::{intersect_mt, intersect_watertight};
 use super::{ShapeHit, SurfacePoint, TraceCounters};
-use crate::accel::{Bvh, Bvh4, PrimRef};
+use crate::accel::{Bvh, Bvh8, PrimRef};
 use crate::math::{Aabb, Ray, Transform, Vec3, gamma};
 use glam::{Affine3A, Mat3A, Vec2};
 use rayon::prelude::*;
@@ -19,8 +19,8 @@ pub struct Mesh {
     pub normals: Vec<glam::Vec3>,
     /// Per-vertex texture coordinates, or empty.
     pub uvs: Vec<Vec2>,
-    /// 4-wide BVH, collapsed from the binary SAH BVH.
-    pub bvh: Bvh4,
+    /// 8-wide BVH, collapsed from the binary SAH BVH.
+    pub bvh: Bvh8,
 }
 
 /// Why a mesh could not be built from its arrays.
@@ -95,7 +95,7 @@ impl Mesh {
             nodes,
             indices: Vec::new(),
         };
-        let bvh = Bvh4::from_binary(&binary);
+        let bvh = Bvh8::from_binary(&binary);
         Ok(Mesh {
             positions,
             triangles,
@@ -133,13 +133,20 @@ impl Mesh {
     #[inline]
     pub fn intersect_object(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
         let mut bary = (0.0, 0.0);
-        let (prim, t) = self.bvh.closest(ray, &mut counters.bvh, |prim, t_max| {
-            let (v0, v1, v2) = self.vertices(prim);
-            intersect_mt(ray.o, ray.d, v0, v1, v2, ray.t_min, t_max).map(|h| {
-                bary = (h.b1, h.b2);
-                h.t
-            })
-        })?;
+        // The closures are inlined into the traversal loop, which keeps the
+        // ray's lanes in registers (the AVX traversal is a separate function).
+        let (prim, t) = self.bvh.closest(
+            ray,
+            &mut counters.bvh,
+            #[inline(always)]
+            |prim, t_max| {
+                let (v0, v1, v2) = self.vertices(prim);
+                intersect_mt(ray.o, ray.d, v0, v1, v2, ray.t_min, t_max).map(|h| {
+                    bary = (h.b1, h.b2);
+                    h.t
+                })
+            },
+        )?;
         Some(ShapeHit {
             t,
             prim,
@@ -151,10 +158,15 @@ impl Mesh {
     /// Whether an object-space ray's segment meets the mesh (any hit).
     #[inline]
     pub fn occludes_object(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
-        self.bvh.any(ray, &mut counters.bvh, |prim| {
-            let (v0, v1, v2) = self.vertices(prim);
-            intersect_mt(ray.o, ray.d, v0, v1, v2, ray.t_min, ray.t_max).is_some()
-        })
+        self.bvh.any(
+            ray,
+            &mut counters.bvh,
+            #[inline(always)]
+            |prim| {
+                let (v0, v1, v2) = self.vertices(prim);
+                intersect_mt(ray.o, ray.d, v0, v1, v2, ray.t_min, ray.t_max).is_some()
+            },
+        )
     }
 
     /// Calls `hit(t, cos θ)` for every triangle the object-space ray's segment

@@ -1,0 +1,715 @@
+//! An 8-wide BVH collapsed from the binary one: each node holds the boxes of up
+//! to eight children in structure-of-arrays form, and one ray is tested
+//! against all eight at once. Wide nodes cut the depth of the tree and the
+//! number of nodes a ray visits to about a third of the binary tree's (Wald et
+//! al., "Getting Rid of Packets", 2008; Dammertz et al., "Shallow Bounding
+//! Volume Hierarchies", 2008; Embree's BVH8).
+//!
+//! The eight slab tests run in one 256-bit AVX register where the CPU has AVX
+//! (detected at run time, so the binary runs on any x86-64), and as two 4-lane
+//! halves otherwise (glam's `Vec4`: SSE2 on x86-64, scalar elsewhere). Both
+//! compute exactly the same numbers, `(plane − o)·(1/d)` without fused
+//! multiply-add, so images do not depend on the CPU.
+//!
+//! Collapse: a binary node's children are expanded, largest surface area
+//! first, until the node has eight children or only leaves are left.
+
+use super::bvh::{Bvh, MAX_DEPTH, TraversalCounters};
+use crate::math::{Aabb, Ray, Vec3};
+use glam::Vec4;
+use std::mem::MaybeUninit;
+
+/// Children per node.
+pub const WIDTH: usize = 8;
+/// A child slot: an interior node, a leaf, or empty.
+const EMPTY: u32 = u32::MAX;
+/// High bit of `child` marks a leaf; the rest is its first primitive.
+const LEAF: u32 = 1 << 31;
+/// Each visit pushes at most `WIDTH − 1` children, and no path through the
+/// wide tree is longer than one through the binary tree.
+const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
+
+/// One coordinate of the eight children's boxes, aligned for a 256-bit load.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(32))]
+pub struct Lanes8(pub [f32; WIDTH]);
+
+/// A node with up to eight children (256 bytes, four cache lines).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
+pub struct Bvh8Node {
+    /// Rows `min x, min y, min z, max x, max y, max z`, one lane per child:
+    /// the near plane of axis `a` for a ray with `d[a] < 0` is row `a + 3`.
+    pub planes: [Lanes8; 6],
+    /// Interior child: its node index; leaf: `LEAF | first primitive`; `EMPTY`.
+    pub child: [u32; WIDTH],
+    /// Primitives of a leaf child (at most the binary BVH's largest leaf).
+    pub count: [u8; WIDTH],
+}
+
+impl Bvh8Node {
+    const EMPTY_NODE: Bvh8Node = Bvh8Node {
+        planes: [
+            Lanes8([f32::INFINITY; WIDTH]),
+            Lanes8([f32::INFINITY; WIDTH]),
+            Lanes8([f32::INFINITY; WIDTH]),
+            Lanes8([f32::NEG_INFINITY; WIDTH]),
+            Lanes8([f32::NEG_INFINITY; WIDTH]),
+            Lanes8([f32::NEG_INFINITY; WIDTH]),
+        ],
+        child: [EMPTY; WIDTH],
+        count: [0; WIDTH],
+    };
+
+    fn set(&mut self, k: usize, b: &Aabb, child: u32, count: u32) {
+        for a in 0..3 {
+            self.planes[a].0[k] = b.min[a];
+            self.planes[a + 3].0[k] = b.max[a];
+        }
+        self.child[k] = child;
+        self.count[k] = u8::try_from(count).expect("leaves hold at most 255 primitives");
+    }
+
+    pub fn child_bounds(&self, k: usize) -> Aabb {
+        let p = |row: usize| self.planes[row].0[k];
+        Aabb {
+            min: Vec3::new(p(0), p(1), p(2)),
+            max: Vec3::new(p(3), p(4), p(5)),
+        }
+    }
+}
+
+/// What every lane implementation needs of a ray: origin, finite inverse
+/// direction, the rows of the near and far planes, and `t_min`.
+struct RaySetup {
+    o: Vec3,
+    inv: Vec3,
+    near: [usize; 3],
+    far: [usize; 3],
+    t_min: f32,
+}
+
+impl RaySetup {
+    #[inline(always)]
+    fn new(ray: &Ray) -> Self {
+        // Finite, so (plane − o)·inv is never 0·∞ = NaN (see `Bvh`).
+        let inv = ray.d.recip().clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
+        let negative = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
+        RaySetup {
+            o: ray.o,
+            inv,
+            near: std::array::from_fn(|a| a + 3 * negative[a] as usize),
+            far: std::array::from_fn(|a| a + 3 * !negative[a] as usize),
+            t_min: ray.t_min,
+        }
+    }
+}
+
+/// The slab tests of a ray against the eight boxes of a node: fills the entry
+/// distances and returns the mask of children hit within `[t_min, t_max]`.
+trait NodeTest {
+    fn test(&self, n: &Bvh8Node, t_max: f32, t_enter: &mut [f32; WIDTH]) -> u32;
+}
+
+/// The eight slab tests as two 4-lane halves.
+struct PortableLanes {
+    o: [Vec4; 3],
+    inv: [Vec4; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+    t_min: Vec4,
+}
+
+impl PortableLanes {
+    #[inline(always)]
+    fn new(r: &RaySetup) -> Self {
+        PortableLanes {
+            o: [0, 1, 2].map(|a| Vec4::splat(r.o[a])),
+            inv: [0, 1, 2].map(|a| Vec4::splat(r.inv[a])),
+            near: r.near,
+            far: r.far,
+            t_min: Vec4::splat(r.t_min),
+        }
+    }
+}
+
+impl NodeTest for PortableLanes {
+    #[inline(always)]
+    fn test(&self, n: &Bvh8Node, t_max: f32, t_enter: &mut [f32; WIDTH]) -> u32 {
+        let t_max = Vec4::splat(t_max);
+        let mut mask = 0;
+        for half in 0..2 {
+            let lanes = |row: usize| Vec4::from_slice(&n.planes[row].0[4 * half..4 * half + 4]);
+            let t = |a: usize, row: usize| (lanes(row) - self.o[a]) * self.inv[a];
+            let (nx, ny, nz) = (t(0, self.near[0]), t(1, self.near[1]), t(2, self.near[2]));
+            let (fx, fy, fz) = (t(0, self.far[0]), t(1, self.far[1]), t(2, self.far[2]));
+            let enter = nx.max(ny).max(nz.max(self.t_min));
+            let exit = fx.min(fy).min(fz.min(t_max));
+            enter.write_to_slice(&mut t_enter[4 * half..4 * half + 4]);
+            mask |= enter.cmple(exit).bitmask() << (4 * half);
+        }
+        mask
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use super::{Bvh8Node, NodeTest, RaySetup, WIDTH};
+    use std::arch::x86_64::*;
+
+    /// The eight slab tests in one 256-bit register each. Only made where the
+    /// CPU has AVX.
+    pub(super) struct AvxLanes {
+        o: [__m256; 3],
+        inv: [__m256; 3],
+        near: [usize; 3],
+        far: [usize; 3],
+        t_min: __m256,
+    }
+
+    impl AvxLanes {
+        /// The caller makes sure that the CPU has AVX.
+        #[target_feature(enable = "avx")]
+        #[inline]
+        pub(super) fn new(r: &RaySetup) -> Self {
+            AvxLanes {
+                o: [0, 1, 2].map(|a| _mm256_set1_ps(r.o[a])),
+                inv: [0, 1, 2].map(|a| _mm256_set1_ps(r.inv[a])),
+                near: r.near,
+                far: r.far,
+                t_min: _mm256_set1_ps(r.t_min),
+            }
+        }
+    }
+
+    impl NodeTest for AvxLanes {
+        /// As [`super::PortableLanes`]'s, operation for operation (max and
+        /// min return their second operand for NaN in both). Inlined into the
+        /// callers compiled with AVX enabled.
+        #[inline(always)]
+        fn test(&self, n: &Bvh8Node, t_max: f32, t_enter: &mut [f32; WIDTH]) -> u32 {
+            // SAFETY (all blocks): an `AvxLanes` exists only where the CPU has
+            // AVX; each row is 8 floats aligned to 32 bytes (`Lanes8`), and
+            // `t_enter` holds 8 floats.
+            let lanes = |row: usize| unsafe { _mm256_load_ps(n.planes[row].0.as_ptr()) };
+            let t = |a: usize, row: usize| unsafe {
+                _mm256_mul_ps(_mm256_sub_ps(lanes(row), self.o[a]), self.inv[a])
+            };
+            let (nx, ny, nz) = (t(0, self.near[0]), t(1, self.near[1]), t(2, self.near[2]));
+            let (fx, fy, fz) = (t(0, self.far[0]), t(1, self.far[1]), t(2, self.far[2]));
+            unsafe {
+                let enter = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, self.t_min));
+                let exit = _mm256_min_ps(
+                    _mm256_min_ps(fx, fy),
+                    _mm256_min_ps(fz, _mm256_set1_ps(t_max)),
+                );
+                _mm256_storeu_ps(t_enter.as_mut_ptr(), enter);
+                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit)) as u32
+            }
+        }
+    }
+}
+
+/// Whether the 256-bit lane test can run here (checked once, then cached by
+/// the standard library).
+#[inline(always)]
+fn has_avx() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// A traversal stack that is not cleared for every ray.
+struct Stack<T: Copy> {
+    items: [MaybeUninit<T>; STACK],
+    len: usize,
+}
+
+impl<T: Copy> Stack<T> {
+    #[inline(always)]
+    fn new() -> Self {
+        Stack {
+            items: [const { MaybeUninit::uninit() }; STACK],
+            len: 0,
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, item: T) {
+        // Indexing checks the bound; `STACK` covers the deepest tree.
+        self.items[self.len].write(item);
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<T> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: items below `len` were written by `push`.
+        Some(unsafe { self.items[self.len].assume_init() })
+    }
+}
+
+/// An 8-wide BVH over primitives given by leaf position (the owner keeps its
+/// primitives in the order of the binary BVH it was collapsed from).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Bvh8 {
+    pub nodes: Vec<Bvh8Node>,
+    /// The box of everything.
+    pub bounds: Option<Aabb>,
+}
+
+impl Bvh8 {
+    /// Collapses a binary BVH. Leaves keep their primitive ranges, so the
+    /// primitives stay in `bvh`'s leaf order. Sequential: it is memory-bound,
+    /// and per-thread arrays would cost more in fresh pages than they save.
+    pub fn from_binary(bvh: &Bvh) -> Bvh8 {
+        let Some(root) = bvh.nodes.first() else {
+            return Bvh8::default();
+        };
+        let bounds = Some(root.bounds());
+        if root.count > 0 {
+            // A single leaf: one node with one child.
+            let mut n = Bvh8Node::EMPTY_NODE;
+            n.set(0, &root.bounds(), LEAF | root.offset, root.count);
+            return Bvh8 {
+                nodes: vec![n],
+                bounds,
+            };
+        }
+        // About a seventh of the binary nodes become wide nodes.
+        let mut nodes = Vec::with_capacity(bvh.nodes.len() / 6 + 1);
+        nodes.push(Bvh8Node::EMPTY_NODE);
+        // (binary node's subtree range, wide node to fill)
+        let mut todo = vec![((0usize, bvh.nodes.len()), 0usize)];
+        while let Some((range, w)) = todo.pop() {
+            let (children, len) = collapse(bvh, range);
+            let mut node = Bvh8Node::EMPTY_NODE;
+            for (k, &(c, end)) in children[..len].iter().enumerate() {
+                let child = &bvh.nodes[c];
+                if child.count > 0 {
+                    node.set(k, &child.bounds(), LEAF | child.offset, child.count);
+                } else {
+                    let index = nodes.len();
+                    nodes.push(Bvh8Node::EMPTY_NODE);
+                    node.set(k, &child.bounds(), index as u32, 0);
+                    todo.push(((c, end), index));
+                }
+            }
+            nodes[w] = node;
+        }
+        Bvh8 { nodes, bounds }
+    }
+
+    /// Bytes of nodes.
+    pub fn bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<Bvh8Node>()
+    }
+
+    /// Closest hit, nearer children first, pruning by the closest `t`; as
+    /// [`Bvh::closest`].
+    #[inline]
+    pub fn closest(
+        &self,
+        ray: &Ray,
+        counters: &mut TraversalCounters,
+        test: impl FnMut(u32, f32) -> Option<f32>,
+    ) -> Option<(u32, f32)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let setup = RaySetup::new(ray);
+        #[cfg(target_arch = "x86_64")]
+        if has_avx() {
+            // SAFETY: the CPU has AVX.
+            return unsafe { self.closest_avx(&setup, ray.t_max, counters, test) };
+        }
+        self.closest_with(ray.t_max, counters, test, &PortableLanes::new(&setup))
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn closest_avx(
+        &self,
+        setup: &RaySetup,
+        t_max: f32,
+        counters: &mut TraversalCounters,
+        test: impl FnMut(u32, f32) -> Option<f32>,
+    ) -> Option<(u32, f32)> {
+        self.closest_with(t_max, counters, test, &avx::AvxLanes::new(setup))
+    }
+
+    #[inline(always)]
+    fn closest_with(
+        &self,
+        mut t_max: f32,
+        counters: &mut TraversalCounters,
+        mut test: impl FnMut(u32, f32) -> Option<f32>,
+        lanes: &impl NodeTest,
+    ) -> Option<(u32, f32)> {
+        let mut best = None;
+        // Children not visited yet, with their entry distances.
+        let mut stack = Stack::<(u32, f32)>::new();
+        let mut index = 0u32;
+        let (mut visited, mut tests) = (0u64, 0u64);
+        let mut t = [0f32; WIDTH];
+        'visit: loop {
+            let node = &self.nodes[index as usize];
+            visited += 1;
+            let mut bits = lanes.test(node, t_max, &mut t);
+            // Leaf children first, each pruning by the closest hit so far;
+            // then the nearest interior child is visited next without going
+            // through the stack, and the others are pushed farthest first.
+            let mut inner = [(0u32, 0f32); WIDTH];
+            let mut n_inner = 0;
+            while bits != 0 {
+                let k = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let child = node.child[k];
+                if child & LEAF != 0 {
+                    if t[k] > t_max {
+                        continue;
+                    }
+                    let first = child & !LEAF;
+                    for prim in first..first + node.count[k] as u32 {
+                        tests += 1;
+                        if let Some(th) = test(prim, t_max) {
+                            t_max = th;
+                            best = Some((prim, th));
+                        }
+                    }
+                } else {
+                    // Insertion, keeping `inner` sorted by descending distance.
+                    let mut j = n_inner;
+                    while j > 0 && inner[j - 1].1 < t[k] {
+                        inner[j] = inner[j - 1];
+                        j -= 1;
+                    }
+                    inner[j] = (child, t[k]);
+                    n_inner += 1;
+                }
+            }
+            if n_inner > 0 {
+                for &item in &inner[..n_inner - 1] {
+                    stack.push(item);
+                }
+                let (c, tc) = inner[n_inner - 1];
+                if tc <= t_max {
+                    index = c;
+                    continue;
+                }
+            }
+            // Pop, skipping nodes now beyond the closest hit.
+            while let Some((c, tc)) = stack.pop() {
+                if tc <= t_max {
+                    index = c;
+                    continue 'visit;
+                }
+            }
+            break;
+        }
+        counters.nodes_visited += visited;
+        counters.primitive_tests += tests;
+        best
+    }
+
+    /// Any hit: stops at the first primitive for which `test(prim)` is true.
+    #[inline]
+    pub fn any(
+        &self,
+        ray: &Ray,
+        counters: &mut TraversalCounters,
+        test: impl FnMut(u32) -> bool,
+    ) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let setup = RaySetup::new(ray);
+        #[cfg(target_arch = "x86_64")]
+        if has_avx() {
+            // SAFETY: the CPU has AVX.
+            return unsafe { self.any_avx(&setup, ray.t_max, counters, test) };
+        }
+        self.any_with(ray.t_max, counters, test, &PortableLanes::new(&setup))
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn any_avx(
+        &self,
+        setup: &RaySetup,
+        t_max: f32,
+        counters: &mut TraversalCounters,
+        test: impl FnMut(u32) -> bool,
+    ) -> bool {
+        self.any_with(t_max, counters, test, &avx::AvxLanes::new(setup))
+    }
+
+    #[inline(always)]
+    fn any_with(
+        &self,
+        t_max: f32,
+        counters: &mut TraversalCounters,
+        mut test: impl FnMut(u32) -> bool,
+        lanes: &impl NodeTest,
+    ) -> bool {
+        let mut stack = Stack::<u32>::new();
+        let mut index = 0u32;
+        let (mut visited, mut tests) = (0u64, 0u64);
+        let mut found = false;
+        let mut t = [0f32; WIDTH];
+        'visit: loop {
+            let node = &self.nodes[index as usize];
+            visited += 1;
+            let mut bits = lanes.test(node, t_max, &mut t);
+            // Leaves at once; of the interior children, the last is visited
+            // next without going through the stack, the others are pushed.
+            let mut next = None;
+            while bits != 0 {
+                let k = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let child = node.child[k];
+                if child & LEAF != 0 {
+                    let first = child & !LEAF;
+                    for prim in first..first + node.count[k] as u32 {
+                        tests += 1;
+                        if test(prim) {
+                            found = true;
+                            break 'visit;
+                        }
+                    }
+                } else {
+                    if let Some(previous) = next {
+                        stack.push(previous);
+                    }
+                    next = Some(child);
+                }
+            }
+            index = match next.or_else(|| stack.pop()) {
+                Some(c) => c,
+                None => break,
+            };
+        }
+        counters.nodes_visited += visited;
+        counters.primitive_tests += tests;
+        found
+    }
+
+    /// Structural checks as [`Bvh::validate`]: children inside parents, every
+    /// primitive (by leaf position, `0..n`) in exactly one leaf inside its box.
+    pub fn validate(&self, bounds: &[Aabb]) -> Result<(), String> {
+        let mut seen = vec![false; bounds.len()];
+        let contains = |outer: &Aabb, inner: &Aabb| {
+            inner.min.cmpge(outer.min).all() && inner.max.cmple(outer.max).all()
+        };
+        let mut stack = if self.nodes.is_empty() {
+            vec![]
+        } else {
+            vec![(0usize, None::<Aabb>)]
+        };
+        while let Some((i, parent)) = stack.pop() {
+            let node = self.nodes.get(i).ok_or(format!("node {i} out of range"))?;
+            for k in 0..WIDTH {
+                let child = node.child[k];
+                if child == EMPTY {
+                    continue;
+                }
+                let b = node.child_bounds(k);
+                if let Some(p) = parent
+                    && !contains(&p, &b)
+                {
+                    return Err(format!("child {k} of node {i} outside its parent"));
+                }
+                if child & LEAF != 0 {
+                    let first = (child & !LEAF) as usize;
+                    let end = first + node.count[k] as usize;
+                    let (Some(leaf_bounds), Some(leaf_seen)) =
+                        (bounds.get(first..end), seen.get_mut(first..end))
+                    else {
+                        return Err(format!("leaf primitives {first}..{end} out of range"));
+                    };
+                    for (j, (pb, was)) in leaf_bounds.iter().zip(leaf_seen).enumerate() {
+                        let p = first + j;
+                        if std::mem::replace(was, true) {
+                            return Err(format!("primitive {p} in two leaves"));
+                        }
+                        if !contains(&b, pb) {
+                            return Err(format!("primitive {p} outside its leaf"));
+                        }
+                    }
+                } else {
+                    if child as usize <= i {
+                        return Err(format!("child {child} of node {i} precedes it"));
+                    }
+                    stack.push((child as usize, Some(b)));
+                }
+            }
+        }
+        if seen.iter().any(|s| !s) {
+            return Err("some primitives are in no leaf".into());
+        }
+        Ok(())
+    }
+}
+
+/// Up to eight descendants of binary node `range.0` that together cover it,
+/// each with the end of its subtree's node range: its children, with the
+/// interior one of largest surface area replaced by its own children while
+/// there is room.
+fn collapse(bvh: &Bvh, range: (usize, usize)) -> ([(usize, usize); WIDTH], usize) {
+    let (b, end) = range;
+    let right = bvh.nodes[b].offset as usize;
+    let mut children = [(0, 0); WIDTH];
+    children[0] = (b + 1, right);
+    children[1] = (right, end);
+    let mut len = 2;
+    let area = |i: usize| {
+        let e = (bvh.nodes[i].bounds().max - bvh.nodes[i].bounds().min).max(Vec3::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    };
+    while len < WIDTH {
+        let Some(k) = (0..len)
+            .filter(|&k| bvh.nodes[children[k].0].count == 0)
+            .max_by(|&x, &y| area(children[x].0).total_cmp(&area(children[y].0)))
+        else {
+            break;
+        };
+        let (c, c_end) = children[k];
+        let c_right = bvh.nodes[c].offset as usize;
+        children[k] = (c + 1, c_right);
+        children[len] = (c_right, c_end);
+        len += 1;
+    }
+    (children, len)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::Pcg32;
+
+    fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {
+        let mut rng = Pcg32::new(seed, 1);
+        (0..n)
+            .map(|_| {
+                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
+                let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.3;
+                Aabb::new(c - e, c + e)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn avx_and_portable_lanes_agree_bit_for_bit() {
+        let b = random_boxes(5000, 4);
+        let bvh = Bvh::build(&b);
+        let wide = Bvh8::from_binary(&bvh);
+        let mut rng = Pcg32::new(5, 3);
+        let mut compared = 0;
+        for i in 0..20_000 {
+            let o =
+                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - Vec3::splat(2.0);
+            let mut d =
+                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - Vec3::splat(0.5);
+            // Axis-parallel directions too: 1/0 clamps to ±1e30.
+            if i % 7 == 0 {
+                d[i % 3] = 0.0;
+            }
+            let mut ray = Ray::new(o, d);
+            ray.t_max = rng.next_f32() * 20.0;
+            let setup = RaySetup::new(&ray);
+            let portable = PortableLanes::new(&setup);
+            for node in wide.nodes.iter().step_by(17) {
+                let mut t_p = [0f32; WIDTH];
+                let m_p = portable.test(node, ray.t_max, &mut t_p);
+                #[cfg(target_arch = "x86_64")]
+                if has_avx() {
+                    let mut t_a = [0f32; WIDTH];
+                    // SAFETY: the CPU has AVX.
+                    let m_a = unsafe { avx::AvxLanes::new(&setup) }.test(node, ray.t_max, &mut t_a);
+                    assert_eq!(m_a, m_p);
+                    for k in 0..WIDTH {
+                        if m_p & (1 << k) != 0 {
+                            assert_eq!(t_a[k].to_bits(), t_p[k].to_bits());
+                        }
+                    }
+                    compared += 1;
+                }
+                // The mask against the scalar slab test of each child.
+                for k in 0..WIDTH {
+                    if node.child[k] == EMPTY {
+                        assert_eq!(m_p & (1 << k), 0);
+                        continue;
+                    }
+                    let hit = node
+                        .child_bounds(k)
+                        .slab(ray.o, ray.inv_d())
+                        .is_some_and(|h| h.t_enter.max(ray.t_min) <= h.t_exit.min(ray.t_max));
+                    assert_eq!(m_p & (1 << k) != 0, hit, "child {k}");
+                }
+            }
+        }
+        if has_avx() {
+            assert!(compared > 0);
+        }
+    }
+
+    #[test]
+    fn traversal_matches_brute_force_and_tree_is_valid() {
+        let b = random_boxes(20_000, 3);
+        let bvh = Bvh::build(&b);
+        let wide = Bvh8::from_binary(&bvh);
+        // The wide tree refers to primitives by leaf position.
+        let leaf_boxes: Vec<Aabb> = bvh.indices.iter().map(|&i| b[i as usize]).collect();
+        wide.validate(&leaf_boxes).unwrap();
+        assert!(
+            wide.nodes.len() * 5 < bvh.nodes.len(),
+            "collapse fills nodes"
+        );
+        let mut rng = Pcg32::new(9, 2);
+        for _ in 0..2000 {
+            let o =
+                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - Vec3::splat(2.0);
+            let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - Vec3::splat(0.5);
+            let ray = Ray::new(o, d);
+            let inv = ray.inv_d();
+            let t_of = |p: u32| {
+                leaf_boxes[p as usize]
+                    .slab(ray.o, inv)
+                    .map(|h| h.t_enter.max(0.0))
+            };
+            let brute = (0..leaf_boxes.len() as u32)
+                .filter_map(|p| t_of(p).map(|t| (p, t)))
+                .min_by(|x, y| x.1.total_cmp(&y.1).then(x.0.cmp(&y.0)));
+            let mut counters = TraversalCounters::default();
+            let got = wide.closest(&ray, &mut counters, |p, t_max| {
+                t_of(p).filter(|&t| t < t_max)
+            });
+            assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
+            assert_eq!(
+                wide.any(&ray, &mut counters, |p| t_of(p).is_some()),
+                brute.is_some()
+            );
+            // The path taken where the CPU lacks AVX.
+            let portable = PortableLanes::new(&RaySetup::new(&ray));
+            let got = wide.closest_with(
+                ray.t_max,
+                &mut counters,
+                |p, t_max| t_of(p).filter(|&t| t < t_max),
+                &portable,
+            );
+            assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
+            assert_eq!(
+                wide.any_with(ray.t_max, &mut counters, |p| t_of(p).is_some(), &portable),
+                brute.is_some()
+            );
+        }
+    }
+}
