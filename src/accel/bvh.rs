@@ -32,7 +32,7 @@ const PARALLEL_BINNING: usize = 1 << 16;
 /// A node of the flattened tree (32 bytes). Interior nodes (`count == 0`)
 /// have their first child right after them and the second at `offset`;
 /// leaves hold primitives `offset .. offset + count` of [`Bvh::indices`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct BvhNode {
     pub min: [f32; 3],
@@ -76,6 +76,8 @@ impl BvhNode {
 /// A BVH over primitives given by their boxes.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Bvh {
+    /// Depth-first, the root first. After a parallel build some slots
+    /// between subtrees are unused (zeroed and never referenced).
     pub nodes: Vec<BvhNode>,
     /// Primitive indices in leaf order, or empty once the owner has
     /// reordered its primitives into leaf order (leaves then index them
@@ -196,15 +198,16 @@ impl Bvh {
             return Bvh::default();
         }
         let (b, cb) = node_bounds(&refs);
-        // A binary tree over n leaves' worth of primitives has at most 2n − 1
-        // nodes: reserving that (address space; only written pages become
-        // memory) avoids regrowing and copying a gigabyte-sized array.
-        let mut nodes = Vec::with_capacity(2 * refs.len());
+        // A binary tree over n primitives has at most 2n − 1 nodes. Each
+        // subtree is written into its own range of one array of that size:
+        // no copies, no regrowing. The array is allocated zeroed, which the
+        // system provides as untouched pages: pages of slots a parallel build
+        // leaves unused never become memory.
+        let mut nodes: Vec<BvhNode> = bytemuck::zeroed_vec(2 * refs.len() - 1);
         // Parallel subtrees down to 1/32 of the whole: enough tasks to keep
-        // every core busy, few enough levels that the copies of right
-        // subtrees into their parent's array stay cheap.
+        // every core busy.
         let par = PARALLEL_THRESHOLD.max(refs.len() / 32);
-        node(
+        let used = node(
             Task {
                 refs: &mut refs,
                 first: 0,
@@ -213,9 +216,10 @@ impl Bvh {
                 depth: 0,
             },
             &mut nodes,
+            0,
             par,
         );
-        nodes.shrink_to_fit();
+        nodes.truncate(used);
         let indices = refs.par_iter().map(PrimRef::id).collect();
         Bvh { nodes, indices }
     }
@@ -483,10 +487,12 @@ struct Task<'a> {
     depth: usize,
 }
 
-/// Appends the subtree of `task` (its primitives reordered in place into leaf
-/// order) to `out` in depth-first order, node indices relative to `out`'s
-/// start. Subtrees of more than `par` primitives are built in parallel.
-fn node(task: Task, out: &mut Vec<BvhNode>, par: usize) {
+/// Writes the subtree of `task` (its primitives reordered in place into leaf
+/// order) depth-first into the start of `out`, whose first slot is node
+/// `base` of the whole array; returns the number of slots used. `out` must
+/// hold `2·n − 1` slots for `n` primitives. Subtrees of more than `par`
+/// primitives are built in parallel.
+fn node(task: Task, out: &mut [BvhNode], base: usize, par: usize) -> usize {
     let Task {
         refs,
         first,
@@ -495,7 +501,10 @@ fn node(task: Task, out: &mut Vec<BvhNode>, par: usize) {
         depth,
     } = task;
     let n = refs.len();
-    let leaf = |out: &mut Vec<BvhNode>| out.push(BvhNode::new(&b, first as u32, n as u32));
+    let leaf = |out: &mut [BvhNode]| {
+        out[0] = BvhNode::new(&b, first as u32, n as u32);
+        1
+    };
     if n <= 2 || (cb.max.cmple(cb.min).all() && n <= MAX_LEAF) {
         return leaf(out);
     }
@@ -503,7 +512,7 @@ fn node(task: Task, out: &mut Vec<BvhNode>, par: usize) {
     // below MAX_SAH_DEPTH + log2(n), which bounds the builder's recursion and
     // the traversal stacks whatever the input.
     if depth >= MAX_SAH_DEPTH {
-        return halves(refs, first, b, depth, out, par);
+        return halves(refs, first, b, depth, out, base, par);
     }
     // Binned along the longest axis of the centroids' box only (Wald 2007);
     // the bins merged on each side give the children's boxes.
@@ -542,7 +551,7 @@ fn node(task: Task, out: &mut Vec<BvhNode>, par: usize) {
             });
             if mid == 0 || mid == n {
                 // Rounding put every centroid on one side: split the list.
-                return halves(refs, first, b, depth, out, par);
+                return halves(refs, first, b, depth, out, base, par);
             }
             children(
                 refs,
@@ -552,12 +561,13 @@ fn node(task: Task, out: &mut Vec<BvhNode>, par: usize) {
                 mid,
                 [(lb.bounds, lb.centroids), (rb.bounds, rb.centroids)],
                 out,
+                base,
                 par,
-            );
+            )
         }
         _ if n <= MAX_LEAF => leaf(out),
         // No useful SAH split (e.g. all centroids equal): split the list in half.
-        _ => halves(refs, first, b, depth, out, par),
+        _ => halves(refs, first, b, depth, out, base, par),
     }
 }
 
@@ -566,18 +576,20 @@ fn halves(
     first: usize,
     b: Aabb,
     depth: usize,
-    out: &mut Vec<BvhNode>,
+    out: &mut [BvhNode],
+    base: usize,
     par: usize,
-) {
+) -> usize {
     let mid = refs.len() / 2;
     let sides = [node_bounds(&refs[..mid]), node_bounds(&refs[mid..])];
-    children(refs, first, b, depth, mid, sides, out, par);
+    children(refs, first, b, depth, mid, sides, out, base, par)
 }
 
 /// The node over `refs` with children over `refs[..mid]` and `refs[mid..]`
-/// (`sides`: their boxes and centroid boxes). Large ones are built in
-/// parallel: the left subtree directly into `out`, the right one into its own
-/// array, appended after (the only copy).
+/// (`sides`: their boxes and centroid boxes), written as [`node`] does.
+/// Large ones build the two subtrees in parallel, each in its own range of
+/// `out` (the left one's sized for the most nodes it can have); small ones
+/// put the right subtree right after the left one.
 #[allow(clippy::too_many_arguments)]
 fn children(
     refs: &mut [PrimRef],
@@ -586,11 +598,10 @@ fn children(
     depth: usize,
     mid: usize,
     sides: [(Aabb, Aabb); 2],
-    out: &mut Vec<BvhNode>,
+    out: &mut [BvhNode],
+    base: usize,
     par: usize,
-) {
-    let here = out.len();
-    out.push(BvhNode::new(&b, 0, 0));
+) -> usize {
     let parallel = refs.len() > par;
     let (left_refs, right_refs) = refs.split_at_mut(mid);
     let [(lb, lc), (rb, rc)] = sides;
@@ -601,7 +612,6 @@ fn children(
         centroids: lc,
         depth: depth + 1,
     };
-    let right_len = right_refs.len();
     let right = Task {
         refs: right_refs,
         first: first + mid,
@@ -609,31 +619,23 @@ fn children(
         centroids: rc,
         depth: depth + 1,
     };
-    let right_start = if parallel {
-        let ((), r) = rayon::join(
-            || node(left, out, par),
+    let (right_start, right_used) = if parallel {
+        let (left_out, right_out) = out[1..].split_at_mut(2 * mid - 1);
+        let right_start = 1 + left_out.len();
+        let ((), right_used) = rayon::join(
             || {
-                let mut v = Vec::with_capacity(2 * right_len);
-                node(right, &mut v, par);
-                v
+                node(left, left_out, base + 1, par);
             },
+            || node(right, right_out, base + right_start, par),
         );
-        let right_start = out.len();
-        out.extend(r.iter().map(|n| {
-            let mut n = *n;
-            if n.count == 0 {
-                n.offset += right_start as u32;
-            }
-            n
-        }));
-        right_start
+        (right_start, right_used)
     } else {
-        node(left, out, par);
-        let right_start = out.len();
-        node(right, out, par);
-        right_start
+        let right_start = 1 + node(left, &mut out[1..], base + 1, par);
+        let right_used = node(right, &mut out[right_start..], base + right_start, par);
+        (right_start, right_used)
     };
-    out[here].offset = right_start as u32;
+    out[0] = BvhNode::new(&b, (base + right_start) as u32, 0);
+    right_start + right_used
 }
 
 /// Moves the elements satisfying `left` to the front; returns their count.

@@ -17,6 +17,7 @@
 use super::bvh::{Bvh, MAX_DEPTH, TraversalCounters};
 use crate::math::{Aabb, Ray, Vec3};
 use glam::Vec4;
+use rayon::prelude::*;
 use std::mem::MaybeUninit;
 
 /// Children per node.
@@ -268,8 +269,14 @@ pub struct Bvh8 {
 
 impl Bvh8 {
     /// Collapses a binary BVH. Leaves keep their primitive ranges, so the
-    /// primitives stay in `bvh`'s leaf order. Sequential: it is memory-bound,
-    /// and per-thread arrays would cost more in fresh pages than they save.
+    /// primitives stay in `bvh`'s leaf order.
+    ///
+    /// The top of the tree is collapsed first, down to subtrees of about
+    /// 1/64 of the binary nodes; those are then counted and collapsed in
+    /// parallel, each straight into its own range of the final array (the
+    /// array is allocated once and every page is written once: on a
+    /// 25M-triangle mesh it is over a gigabyte, and first touches of fresh
+    /// pages are much of the cost).
     pub fn from_binary(bvh: &Bvh) -> Bvh8 {
         let Some(root) = bvh.nodes.first() else {
             return Bvh8::default();
@@ -284,10 +291,11 @@ impl Bvh8 {
                 bounds,
             };
         }
-        // About a seventh of the binary nodes become wide nodes.
-        let mut nodes = Vec::with_capacity(bvh.nodes.len() / 6 + 1);
-        nodes.push(Bvh8Node::EMPTY_NODE);
-        // (binary node's subtree range, wide node to fill)
+        let split = (bvh.nodes.len() / 64).max(1 << 14);
+        // The top: wide nodes whose binary subtrees are larger than `split`.
+        let mut top = vec![Bvh8Node::EMPTY_NODE];
+        // Subtrees left for the parallel phase: (binary range, parent, slot).
+        let mut tasks: Vec<((usize, usize), usize, usize)> = Vec::new();
         let mut todo = vec![((0usize, bvh.nodes.len()), 0usize)];
         while let Some((range, w)) = todo.pop() {
             let (children, len) = collapse(bvh, range);
@@ -296,15 +304,49 @@ impl Bvh8 {
                 let child = &bvh.nodes[c];
                 if child.count > 0 {
                     node.set(k, &child.bounds(), LEAF | child.offset, child.count);
+                } else if end - c > split {
+                    node.set(k, &child.bounds(), top.len() as u32, 0);
+                    todo.push(((c, end), top.len()));
+                    top.push(Bvh8Node::EMPTY_NODE);
                 } else {
-                    let index = nodes.len();
-                    nodes.push(Bvh8Node::EMPTY_NODE);
-                    node.set(k, &child.bounds(), index as u32, 0);
-                    todo.push(((c, end), index));
+                    // The index is set once the subtree has its place.
+                    node.set(k, &child.bounds(), EMPTY, 0);
+                    tasks.push(((c, end), w, k));
                 }
             }
-            nodes[w] = node;
+            top[w] = node;
         }
+        let counts: Vec<usize> = tasks
+            .par_iter()
+            .map(|&(range, _, _)| subtree_size(bvh, range))
+            .collect();
+        // Every slot is written below by exactly one thread, in place: no
+        // zeroing pass (64-byte alignment would make the allocator clear the
+        // whole array on one thread first).
+        let total = top.len() + counts.iter().sum::<usize>();
+        let mut nodes: Vec<Bvh8Node> = Vec::with_capacity(total);
+        let (head, mut rest) = nodes.spare_capacity_mut()[..total].split_at_mut(top.len());
+        let mut base = top.len();
+        let mut jobs = Vec::with_capacity(tasks.len());
+        for (&(range, w, k), &count) in tasks.iter().zip(&counts) {
+            let (slice, tail) = rest.split_at_mut(count);
+            top[w].child[k] = base as u32;
+            jobs.push((range, slice, base));
+            rest = tail;
+            base += count;
+        }
+        for (slot, node) in head.iter_mut().zip(&top) {
+            slot.write(*node);
+        }
+        let written: usize = jobs
+            .into_par_iter()
+            .map(|(range, out, base)| collapse_into(bvh, range, out, base))
+            .sum();
+        assert_eq!(top.len() + written, total, "wide node count");
+        // SAFETY: slots 0..top.len() were written just above, and each task
+        // wrote all slots of its range (`collapse_into` returns how many it
+        // wrote, at most its range's length, and the sum is checked).
+        unsafe { nodes.set_len(total) };
         Bvh8 { nodes, bounds }
     }
 
@@ -566,28 +608,89 @@ impl Bvh8 {
 fn collapse(bvh: &Bvh, range: (usize, usize)) -> ([(usize, usize); WIDTH], usize) {
     let (b, end) = range;
     let right = bvh.nodes[b].offset as usize;
-    let mut children = [(0, 0); WIDTH];
-    children[0] = (b + 1, right);
-    children[1] = (right, end);
-    let mut len = 2;
+    // Surface area of interior children, −1 for leaves (never expanded).
     let area = |i: usize| {
-        let e = (bvh.nodes[i].bounds().max - bvh.nodes[i].bounds().min).max(Vec3::ZERO);
+        let n = &bvh.nodes[i];
+        if n.count > 0 {
+            return -1.0;
+        }
+        let e = (n.bounds().max - n.bounds().min).max(Vec3::ZERO);
         e.x * e.y + e.y * e.z + e.z * e.x
     };
+    let mut children = [(0, 0); WIDTH];
+    let mut areas = [0f32; WIDTH];
+    children[0] = (b + 1, right);
+    children[1] = (right, end);
+    areas[0] = area(b + 1);
+    areas[1] = area(right);
+    let mut len = 2;
     while len < WIDTH {
-        let Some(k) = (0..len)
-            .filter(|&k| bvh.nodes[children[k].0].count == 0)
-            .max_by(|&x, &y| area(children[x].0).total_cmp(&area(children[y].0)))
-        else {
+        // The largest interior child (first of equals).
+        let mut k = 0;
+        for j in 1..len {
+            if areas[j] > areas[k] {
+                k = j;
+            }
+        }
+        if areas[k] < 0.0 {
             break;
-        };
+        }
         let (c, c_end) = children[k];
         let c_right = bvh.nodes[c].offset as usize;
         children[k] = (c + 1, c_right);
+        areas[k] = area(c + 1);
         children[len] = (c_right, c_end);
+        areas[len] = area(c_right);
         len += 1;
     }
     (children, len)
+}
+
+/// The number of wide nodes [`collapse_into`] makes of a binary subtree.
+fn subtree_size(bvh: &Bvh, range: (usize, usize)) -> usize {
+    let mut size = 0;
+    let mut todo = vec![range];
+    while let Some(range) = todo.pop() {
+        size += 1;
+        let (children, len) = collapse(bvh, range);
+        todo.extend(
+            children[..len]
+                .iter()
+                .filter(|&&(c, _)| bvh.nodes[c].count == 0),
+        );
+    }
+    size
+}
+
+/// Collapses the binary subtree `range` (an interior node) into `out`, whose
+/// first slot is node `base` of the whole array and which holds
+/// [`subtree_size`] slots; returns the number of slots written, each once,
+/// from the first on.
+fn collapse_into(
+    bvh: &Bvh,
+    range: (usize, usize),
+    out: &mut [MaybeUninit<Bvh8Node>],
+    base: usize,
+) -> usize {
+    let mut next = 1;
+    let mut todo = vec![(range, 0usize)];
+    while let Some((range, w)) = todo.pop() {
+        let (children, len) = collapse(bvh, range);
+        let mut node = Bvh8Node::EMPTY_NODE;
+        for (k, &(c, end)) in children[..len].iter().enumerate() {
+            let child = &bvh.nodes[c];
+            if child.count > 0 {
+                node.set(k, &child.bounds(), LEAF | child.offset, child.count);
+            } else {
+                node.set(k, &child.bounds(), (base + next) as u32, 0);
+                todo.push(((c, end), next));
+                next += 1;
+            }
+        }
+        // Slot `w` was handed out once, from `next`: each is written once.
+        out[w].write(node);
+    }
+    next
 }
 
 #[cfg(test)]
