@@ -148,6 +148,26 @@ fn bench(c: &mut Criterion) {
             100.0 * rays.hit_fraction,
             rays.shadow.len()
         );
+        // Work per ray, for comparison with other BVH layouts.
+        for (kind, list, any) in [
+            ("primary", &rays.primary, false),
+            ("shadow", &rays.shadow, true),
+        ] {
+            let mut c = TraceCounters::default();
+            for r in list.iter() {
+                if any {
+                    mesh.occludes_object(r, &mut c);
+                } else {
+                    mesh.intersect_object(r, &mut c);
+                }
+            }
+            let n = list.len().max(1) as f64;
+            eprintln!(
+                "  {kind}: {:.1} nodes visited, {:.1} triangle tests per ray",
+                c.bvh.nodes_visited as f64 / n,
+                c.bvh.primitive_tests as f64 / n
+            );
+        }
         let mut g = c.benchmark_group("bvh");
         g.sample_size(10);
         g.throughput(Throughput::Elements(f.len() as u64));

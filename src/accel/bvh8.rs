@@ -46,6 +46,8 @@ pub struct Bvh8Node {
     pub child: [u32; WIDTH],
     /// Primitives of a leaf child (at most the binary BVH's largest leaf).
     pub count: [u8; WIDTH],
+    /// Bit `k` set: child `k` is a leaf.
+    pub leaves: u8,
 }
 
 impl Bvh8Node {
@@ -60,6 +62,7 @@ impl Bvh8Node {
         ],
         child: [EMPTY; WIDTH],
         count: [0; WIDTH],
+        leaves: 0,
     };
 
     fn set(&mut self, k: usize, b: &Aabb, child: u32, count: u32) {
@@ -69,6 +72,11 @@ impl Bvh8Node {
         }
         self.child[k] = child;
         self.count[k] = u8::try_from(count).expect("leaves hold at most 255 primitives");
+        // Leaves hold at least one primitive; interior children none (the
+        // top of `from_binary` fills in their index later).
+        if count > 0 {
+            self.leaves |= 1 << k;
+        }
     }
 
     pub fn child_bounds(&self, k: usize) -> Aabb {
@@ -350,6 +358,26 @@ impl Bvh8 {
         Bvh8 { nodes, bounds }
     }
 
+    /// Asks the CPU to start loading node `index` (a hint; no effect where
+    /// there is no prefetch instruction).
+    #[inline(always)]
+    fn prefetch(&self, index: u32) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(node) = self.nodes.get(index as usize) {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let p = (node as *const Bvh8Node).cast::<i8>();
+            // SAFETY: prefetching is a hint that never faults; the addresses
+            // lie inside the node anyway. SSE is part of x86-64.
+            unsafe {
+                for line in 0..4 {
+                    _mm_prefetch::<_MM_HINT_T0>(p.add(64 * line));
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = index;
+    }
+
     /// Bytes of nodes.
     pub fn bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<Bvh8Node>()
@@ -362,7 +390,36 @@ impl Bvh8 {
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, f32) -> Option<f32>,
+        mut test: impl FnMut(u32, f32) -> Option<f32>,
+    ) -> Option<(u32, f32)> {
+        self.closest_batch(
+            ray,
+            counters,
+            #[inline(always)]
+            |prims, mut t_max| {
+                let mut best = None;
+                for &prim in prims {
+                    if let Some(t) = test(prim, t_max) {
+                        t_max = t;
+                        best = Some((prim, t));
+                    }
+                }
+                best
+            },
+        )
+    }
+
+    /// Closest hit, with the primitives of the leaves a node's box tests let
+    /// through handed to `test` in batches of up to [`WIDTH`], in leaf order
+    /// (for tests that take several primitives at once with SIMD):
+    /// `test(prims, t_max)` returns the closest hit among them before
+    /// `t_max`, the earliest of equals.
+    #[inline]
+    pub fn closest_batch(
+        &self,
+        ray: &Ray,
+        counters: &mut TraversalCounters,
+        test: impl FnMut(&[u32], f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         if self.nodes.is_empty() {
             return None;
@@ -383,7 +440,7 @@ impl Bvh8 {
         setup: &RaySetup,
         t_max: f32,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, f32) -> Option<f32>,
+        test: impl FnMut(&[u32], f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         self.closest_with(t_max, counters, test, &avx::AvxLanes::new(setup))
     }
@@ -393,7 +450,7 @@ impl Bvh8 {
         &self,
         mut t_max: f32,
         counters: &mut TraversalCounters,
-        mut test: impl FnMut(u32, f32) -> Option<f32>,
+        mut test: impl FnMut(&[u32], f32) -> Option<(u32, f32)>,
         lanes: &impl NodeTest,
     ) -> Option<(u32, f32)> {
         let mut best = None;
@@ -405,37 +462,54 @@ impl Bvh8 {
         'visit: loop {
             let node = &self.nodes[index as usize];
             visited += 1;
-            let mut bits = lanes.test(node, t_max, &mut t);
-            // Leaf children first, each pruning by the closest hit so far;
-            // then the nearest interior child is visited next without going
-            // through the stack, and the others are pushed farthest first.
+            let hit = lanes.test(node, t_max, &mut t);
+            // Interior children hit, sorted by descending distance: the
+            // nearest is visited next without going through the stack, the
+            // others are pushed farthest first. Their nodes are fetched
+            // while the leaf children are tested, each pruning by the
+            // closest hit so far.
             let mut inner = [(0u32, 0f32); WIDTH];
             let mut n_inner = 0;
+            let mut bits = hit & !node.leaves as u32;
             while bits != 0 {
                 let k = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
                 let child = node.child[k];
-                if child & LEAF != 0 {
-                    if t[k] > t_max {
-                        continue;
-                    }
-                    let first = child & !LEAF;
-                    for prim in first..first + node.count[k] as u32 {
-                        tests += 1;
-                        if let Some(th) = test(prim, t_max) {
-                            t_max = th;
-                            best = Some((prim, th));
+                self.prefetch(child);
+                let mut j = n_inner;
+                while j > 0 && inner[j - 1].1 < t[k] {
+                    inner[j] = inner[j - 1];
+                    j -= 1;
+                }
+                inner[j] = (child, t[k]);
+                n_inner += 1;
+            }
+            let mut bits = hit & node.leaves as u32;
+            let mut batch = [0u32; WIDTH];
+            let mut n = 0;
+            while bits != 0 {
+                let k = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if t[k] > t_max {
+                    continue;
+                }
+                let first = node.child[k] & !LEAF;
+                for prim in first..first + node.count[k] as u32 {
+                    if n == WIDTH {
+                        tests += n as u64;
+                        if let Some(h) = test(&batch, t_max) {
+                            (t_max, best) = (h.1, Some(h));
                         }
+                        n = 0;
                     }
-                } else {
-                    // Insertion, keeping `inner` sorted by descending distance.
-                    let mut j = n_inner;
-                    while j > 0 && inner[j - 1].1 < t[k] {
-                        inner[j] = inner[j - 1];
-                        j -= 1;
-                    }
-                    inner[j] = (child, t[k]);
-                    n_inner += 1;
+                    batch[n] = prim;
+                    n += 1;
+                }
+            }
+            if n > 0 {
+                tests += n as u64;
+                if let Some(h) = test(&batch[..n], t_max) {
+                    (t_max, best) = (h.1, Some(h));
                 }
             }
             if n_inner > 0 {
@@ -468,7 +542,24 @@ impl Bvh8 {
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32) -> bool,
+        mut test: impl FnMut(u32) -> bool,
+    ) -> bool {
+        self.any_batch(
+            ray,
+            counters,
+            #[inline(always)]
+            |prims| prims.iter().any(|&p| test(p)),
+        )
+    }
+
+    /// Any hit, with primitives handed to `test` in batches as by
+    /// [`Bvh8::closest_batch`]; stops when `test` returns true.
+    #[inline]
+    pub fn any_batch(
+        &self,
+        ray: &Ray,
+        counters: &mut TraversalCounters,
+        test: impl FnMut(&[u32]) -> bool,
     ) -> bool {
         if self.nodes.is_empty() {
             return false;
@@ -489,7 +580,7 @@ impl Bvh8 {
         setup: &RaySetup,
         t_max: f32,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32) -> bool,
+        test: impl FnMut(&[u32]) -> bool,
     ) -> bool {
         self.any_with(t_max, counters, test, &avx::AvxLanes::new(setup))
     }
@@ -499,7 +590,7 @@ impl Bvh8 {
         &self,
         t_max: f32,
         counters: &mut TraversalCounters,
-        mut test: impl FnMut(u32) -> bool,
+        mut test: impl FnMut(&[u32]) -> bool,
         lanes: &impl NodeTest,
     ) -> bool {
         let mut stack = Stack::<u32>::new();
@@ -510,28 +601,47 @@ impl Bvh8 {
         'visit: loop {
             let node = &self.nodes[index as usize];
             visited += 1;
-            let mut bits = lanes.test(node, t_max, &mut t);
-            // Leaves at once; of the interior children, the last is visited
-            // next without going through the stack, the others are pushed.
+            let hit = lanes.test(node, t_max, &mut t);
+            // Interior children hit: the last is visited next without going
+            // through the stack, the others are pushed; their nodes are
+            // fetched while the leaf children are tested.
             let mut next = None;
+            let mut bits = hit & !node.leaves as u32;
             while bits != 0 {
                 let k = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
                 let child = node.child[k];
-                if child & LEAF != 0 {
-                    let first = child & !LEAF;
-                    for prim in first..first + node.count[k] as u32 {
-                        tests += 1;
-                        if test(prim) {
+                self.prefetch(child);
+                if let Some(previous) = next {
+                    stack.push(previous);
+                }
+                next = Some(child);
+            }
+            let mut bits = hit & node.leaves as u32;
+            let mut batch = [0u32; WIDTH];
+            let mut n = 0;
+            while bits != 0 {
+                let k = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let first = node.child[k] & !LEAF;
+                for prim in first..first + node.count[k] as u32 {
+                    if n == WIDTH {
+                        tests += n as u64;
+                        if test(&batch) {
                             found = true;
                             break 'visit;
                         }
+                        n = 0;
                     }
-                } else {
-                    if let Some(previous) = next {
-                        stack.push(previous);
-                    }
-                    next = Some(child);
+                    batch[n] = prim;
+                    n += 1;
+                }
+            }
+            if n > 0 {
+                tests += n as u64;
+                if test(&batch[..n]) {
+                    found = true;
+                    break;
                 }
             }
             index = match next.or_else(|| stack.pop()) {
@@ -562,6 +672,9 @@ impl Bvh8 {
                 let child = node.child[k];
                 if child == EMPTY {
                     continue;
+                }
+                if (child & LEAF != 0) != (node.leaves & (1 << k) != 0) {
+                    return Err(format!("leaf mask of node {i} wrong for child {k}"));
                 }
                 let b = node.child_bounds(k);
                 if let Some(p) = parent
@@ -802,17 +915,24 @@ mod tests {
             );
             // The path taken where the CPU lacks AVX.
             let portable = PortableLanes::new(&RaySetup::new(&ray));
-            let got = wide.closest_with(
-                ray.t_max,
-                &mut counters,
-                |p, t_max| t_of(p).filter(|&t| t < t_max),
-                &portable,
-            );
+            let nearest = |prims: &[u32], t_max: f32| {
+                assert!(!prims.is_empty() && prims.len() <= WIDTH);
+                prims
+                    .iter()
+                    .filter_map(|&p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
+                    .min_by(|x, y| x.1.total_cmp(&y.1))
+            };
+            let got = wide.closest_with(ray.t_max, &mut counters, nearest, &portable);
             assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
+            let any = |prims: &[u32]| prims.iter().any(|&p| t_of(p).is_some());
             assert_eq!(
-                wide.any_with(ray.t_max, &mut counters, |p| t_of(p).is_some(), &portable),
+                wide.any_with(ray.t_max, &mut counters, any, &portable),
                 brute.is_some()
             );
+            // And the batched entry points.
+            let got = wide.closest_batch(&ray, &mut counters, nearest);
+            assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
+            assert_eq!(wide.any_batch(&ray, &mut counters, any), brute.is_some());
         }
     }
 }

@@ -1,11 +1,11 @@
 //! Triangle meshes: flat arrays owned by the mesh, indexed by its own BVH, and
 //! instances (a shared mesh plus a transform).
 
-use super::triangle::{intersect_mt, intersect_watertight};
+use super::triangle::{LANES, TriangleLanes, intersect_mt_lanes, intersect_watertight};
 use super::{ShapeHit, SurfacePoint, TraceCounters};
 use crate::accel::{Bvh, Bvh8, PrimRef};
 use crate::math::{Aabb, Ray, Transform, Vec3, gamma};
-use glam::{Affine3A, Mat3A, Vec2};
+use glam::{Affine3A, Mat3A, Vec2, Vec4};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -129,22 +129,56 @@ impl Mesh {
         )
     }
 
-    /// Closest hit of an object-space ray: `(prim, t, b1, b2)`.
+    /// Up to [`LANES`] triangles, one per lane; lanes past `prims.len()`
+    /// repeat the first triangle.
+    #[inline(always)]
+    fn gather(&self, prims: &[u32]) -> TriangleLanes {
+        let vertex = |i: usize, j: usize| {
+            let prim = *prims.get(i).unwrap_or(&prims[0]);
+            self.positions[self.triangles[prim as usize][j] as usize]
+        };
+        let v = |j: usize| {
+            let p: [glam::Vec3; LANES] = std::array::from_fn(|i| vertex(i, j));
+            [
+                Vec4::new(p[0].x, p[1].x, p[2].x, p[3].x),
+                Vec4::new(p[0].y, p[1].y, p[2].y, p[3].y),
+                Vec4::new(p[0].z, p[1].z, p[2].z, p[3].z),
+            ]
+        };
+        TriangleLanes {
+            v: [v(0), v(1), v(2)],
+        }
+    }
+
+    /// Closest hit of an object-space ray: `(prim, t, b1, b2)`. Triangles
+    /// are tested four at a time ([`intersect_mt_lanes`]); the closures are
+    /// inlined into the traversal loop (whose AVX version is a function of
+    /// its own), which keeps the ray in registers.
     #[inline]
     pub fn intersect_object(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
         let mut bary = (0.0, 0.0);
-        // The closures are inlined into the traversal loop, which keeps the
-        // ray's lanes in registers (the AVX traversal is a separate function).
-        let (prim, t) = self.bvh.closest(
+        let (prim, t) = self.bvh.closest_batch(
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |prim, t_max| {
-                let (v0, v1, v2) = self.vertices(prim);
-                intersect_mt(ray.o, ray.d, v0, v1, v2, ray.t_min, t_max).map(|h| {
-                    bary = (h.b1, h.b2);
-                    h.t
-                })
+            |prims, mut t_max| {
+                let mut best = None;
+                for chunk in prims.chunks(LANES) {
+                    let h = intersect_mt_lanes(ray.o, ray.d, &self.gather(chunk), ray.t_min, t_max);
+                    // The nearest lane, the first of equals (padding lanes
+                    // repeat lane 0, so they never win).
+                    let mut bits = h.mask;
+                    while bits != 0 {
+                        let i = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        if h.t[i] < t_max {
+                            t_max = h.t[i];
+                            bary = (h.b1[i], h.b2[i]);
+                            best = Some((chunk[i], t_max));
+                        }
+                    }
+                }
+                best
             },
         )?;
         Some(ShapeHit {
@@ -158,13 +192,16 @@ impl Mesh {
     /// Whether an object-space ray's segment meets the mesh (any hit).
     #[inline]
     pub fn occludes_object(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
-        self.bvh.any(
+        self.bvh.any_batch(
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |prim| {
-                let (v0, v1, v2) = self.vertices(prim);
-                intersect_mt(ray.o, ray.d, v0, v1, v2, ray.t_min, ray.t_max).is_some()
+            |prims| {
+                prims.chunks(LANES).any(|chunk| {
+                    let h =
+                        intersect_mt_lanes(ray.o, ray.d, &self.gather(chunk), ray.t_min, ray.t_max);
+                    h.mask != 0
+                })
             },
         )
     }

@@ -19,7 +19,10 @@ pub use implicit::Implicit;
 pub use mesh::{Mesh, MeshDataError, MeshInstance};
 pub use plane::Plane;
 pub use sphere::Sphere;
-pub use triangle::{TriangleHit, intersect_mt, intersect_watertight};
+pub use triangle::{
+    LANES, LaneHits, TriangleHit, TriangleLanes, intersect_mt, intersect_mt_lanes,
+    intersect_watertight,
+};
 
 use crate::accel::TraversalCounters;
 use crate::math::{Aabb, Ray, Vec3};
