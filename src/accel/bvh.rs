@@ -24,6 +24,8 @@ const MAX_SAH_DEPTH: usize = 40;
 /// A bound on the depth of any tree, MAX_SAH_DEPTH plus log2 of the largest
 /// primitive count (2^32), for the traversal stacks.
 pub(crate) const MAX_DEPTH: usize = MAX_SAH_DEPTH + 33;
+/// Nodes with at most this many primitives are split by a full SAH sweep.
+const SWEEP_BELOW: usize = 32;
 /// Nodes with more primitives than this build their children in parallel.
 const PARALLEL_THRESHOLD: usize = 4096;
 /// Nodes with more primitives than this bin them in parallel chunks.
@@ -514,9 +516,12 @@ fn node(task: Task, out: &mut [BvhNode], base: usize, par: usize) -> usize {
     if depth >= MAX_SAH_DEPTH {
         return halves(refs, first, b, depth, out, base, par);
     }
+    let axis = (cb.max - cb.min).max_position();
+    if n <= SWEEP_BELOW {
+        return small(refs, first, b, depth, axis, out, base, par);
+    }
     // Binned along the longest axis of the centroids' box only (Wald 2007);
     // the bins merged on each side give the children's boxes.
-    let axis = (cb.max - cb.min).max_position();
     let mut best: Option<(f32, usize, Bin, Bin)> = None;
     if cb.max[axis] > cb.min[axis] {
         let bins = bin(refs, &cb, axis);
@@ -568,6 +573,68 @@ fn node(task: Task, out: &mut [BvhNode], base: usize, par: usize) -> usize {
         _ if n <= MAX_LEAF => leaf(out),
         // No useful SAH split (e.g. all centroids equal): split the list in half.
         _ => halves(refs, first, b, depth, out, base, par),
+    }
+}
+
+/// A small node: the primitives sorted by centroid along `axis` and every
+/// split between neighbours evaluated with the SAH (a full sweep, MacDonald
+/// and Booth 1990). Exact where binning approximates, and cheaper for a few
+/// primitives than clearing and sweeping the bins; most nodes are small.
+#[allow(clippy::too_many_arguments)]
+fn small(
+    refs: &mut [PrimRef],
+    first: usize,
+    b: Aabb,
+    depth: usize,
+    axis: usize,
+    out: &mut [BvhNode],
+    base: usize,
+    par: usize,
+) -> usize {
+    let n = refs.len();
+    // Insertion sort: stable, in place, fast for so few.
+    for i in 1..n {
+        let mut j = i;
+        while j > 0 && refs[j - 1].centroid2()[axis] > refs[j].centroid2()[axis] {
+            refs.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+    let point = |r: &PrimRef| {
+        let c = r.centroid2();
+        Aabb { min: c, max: c }
+    };
+    // Boxes and centroid boxes of refs[i..].
+    let mut suffix = [(Aabb::EMPTY, Aabb::EMPTY); SWEEP_BELOW + 1];
+    for i in (0..n).rev() {
+        suffix[i] = (
+            suffix[i + 1].0.union(&refs[i].bounds()),
+            suffix[i + 1].1.union(&point(&refs[i])),
+        );
+    }
+    let mut left = (Aabb::EMPTY, Aabb::EMPTY);
+    let mut best: Option<(f32, usize, (Aabb, Aabb))> = None;
+    for i in 1..n {
+        left = (
+            left.0.union(&refs[i - 1].bounds()),
+            left.1.union(&point(&refs[i - 1])),
+        );
+        let cost = area(&left.0) * i as f32 + area(&suffix[i].0) * (n - i) as f32;
+        if best.as_ref().is_none_or(|x| cost < x.0) {
+            best = Some((cost, i, left));
+        }
+    }
+    match best {
+        Some((cost, mid, left))
+            if TRAVERSAL_COST + cost / area(&b).max(f32::MIN_POSITIVE) < n as f32
+                || n > MAX_LEAF =>
+        {
+            children(refs, first, b, depth, mid, [left, suffix[mid]], out, base, par)
+        }
+        _ => {
+            out[0] = BvhNode::new(&b, first as u32, n as u32);
+            1
+        }
     }
 }
 
