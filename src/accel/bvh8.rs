@@ -299,7 +299,7 @@ impl Bvh8 {
                 bounds,
             };
         }
-        let split = (bvh.nodes.len() / 64).max(1 << 14);
+        let split = (bvh.nodes.len() / 64).max(1 << 12);
         // The top: wide nodes whose binary subtrees are larger than `split`.
         let mut top = vec![Bvh8Node::EMPTY_NODE];
         // Subtrees left for the parallel phase: (binary range, parent, slot).
