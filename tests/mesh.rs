@@ -375,3 +375,56 @@ fn spawned_rays_leave_transformed_instances() {
         "{rehits} of {tested} shadow rays hit their own surface again"
     );
 }
+
+/// `smooth = true` gives a mesh file without normals area-weighted vertex
+/// normals (on a sphere: nearly radial), shared by the objects that ask for
+/// them; the same file without it stays flat; a non-boolean is an error.
+#[test]
+fn smooth_option_makes_vertex_normals() {
+    let dir = tempfile::tempdir().unwrap();
+    write_ply(&dir.path().join("ball.ply"), &icosphere(3, 1.0));
+    let head = "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, 0]\n";
+    let object =
+        |extra: &str| format!("[[object]]\nshape = \"mesh\"\nfile = \"ball.ply\"\n{extra}");
+    let scene = format!(
+        "{head}{}{}{}",
+        object("smooth = true\n"),
+        object("smooth = true\ntransform = { translate = [3, 0, 0] }\n"),
+        object("")
+    );
+    std::fs::write(dir.path().join("s.toml"), scene).unwrap();
+    let file =
+        glint::scene::load_scene_file(&dir.path().join("s.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let meshes: Vec<&Arc<Mesh>> = file
+        .scene
+        .objects
+        .iter()
+        .map(|o| match &o.shape {
+            Shape::Mesh(m) => &m.mesh,
+            other => panic!("not a mesh: {other:?}"),
+        })
+        .collect();
+    let (smooth, flat) = (meshes[0], meshes[2]);
+    assert!(
+        Arc::ptr_eq(meshes[0], meshes[1]),
+        "one smoothed mesh, shared"
+    );
+    assert!(flat.normals.is_empty());
+    assert_eq!(smooth.normals.len(), smooth.positions.len());
+    for (p, n) in smooth.positions.iter().zip(&smooth.normals) {
+        assert!(n.dot(p.normalize()) > 0.99, "normal {n} at {p}");
+    }
+    std::fs::write(
+        dir.path().join("bad.toml"),
+        format!("{head}{}", object("smooth = \"yes\"\n")),
+    )
+    .unwrap();
+    let err = glint::scene::load_scene_file(&dir.path().join("bad.toml"))
+        .err()
+        .expect("a string is not a boolean")
+        .to_string();
+    assert!(
+        err.contains("bad.toml:7:10") && err.contains("expected true or false"),
+        "{err}"
+    );
+}

@@ -629,7 +629,17 @@ fn small(
             if TRAVERSAL_COST + cost / area(&b).max(f32::MIN_POSITIVE) < n as f32
                 || n > MAX_LEAF =>
         {
-            children(refs, first, b, depth, mid, [left, suffix[mid]], out, base, par)
+            children(
+                refs,
+                first,
+                b,
+                depth,
+                mid,
+                [left, suffix[mid]],
+                out,
+                base,
+                par,
+            )
         }
         _ => {
             out[0] = BvhNode::new(&b, first as u32, n as u32);

@@ -25,10 +25,10 @@
 //! material = "glass"
 //! ```
 
-use super::meshio::{Model, load_mesh_file};
+use super::meshio::{Model, load_mesh_file, smooth_normals};
 use super::{Camera, CheckerMode, Light, Material, MaterialKind, Object, Scene, Texture};
 use crate::geometry::implicit::{HEART_BOUNDS, HEART_FORMULA, ImplicitError, torus_formula};
-use crate::geometry::{Cuboid, Implicit, MeshInstance, Plane, Shape, Sphere};
+use crate::geometry::{Cuboid, Implicit, Mesh, MeshInstance, Plane, Shape, Sphere};
 use crate::math::{Aabb, Color, Transform, Vec3};
 use crate::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP, RenderSettings};
 use glam::DVec3;
@@ -148,6 +148,16 @@ impl Ctx<'_> {
             other => Err(self.error(
                 v.span(),
                 format!("expected a string, found {}", other.type_str()),
+            )),
+        }
+    }
+
+    fn boolean(&self, v: &Value) -> Result<bool> {
+        match v.get_ref() {
+            DeValue::Boolean(b) => Ok(*b),
+            other => Err(self.error(
+                v.span(),
+                format!("expected true or false, found {}", other.type_str()),
             )),
         }
     }
@@ -722,7 +732,8 @@ fn formula_error(ctx: &Ctx, v: &Value, formula: &str, column: usize, message: &s
 /// with the indices their materials got in the scene's material list.
 #[derive(Default)]
 struct MeshCache {
-    models: HashMap<PathBuf, (Arc<Model>, Vec<Option<u32>>)>,
+    /// By path and whether smooth normals were asked for.
+    models: HashMap<(PathBuf, bool), (Arc<Model>, Vec<Option<u32>>)>,
 }
 
 /// A `shape = "mesh"` object: one object per part of the file, each an
@@ -737,16 +748,42 @@ fn read_mesh(
     let relative = ctx.string(file)?;
     let folder = ctx.path.parent().unwrap_or(Path::new(""));
     let path = folder.join(relative);
-    let (model, material_ids) = match cache.models.get(&path) {
+    let smooth = f.opt("smooth", |ctx, v| ctx.boolean(v))?.unwrap_or(false);
+    let key = (path.clone(), smooth);
+    let (model, material_ids) = match cache.models.get(&key) {
         Some(entry) => entry.clone(),
         None => {
-            let model = load_mesh_file(&path).map_err(|e| {
+            let mut model = load_mesh_file(&path).map_err(|e| {
                 ctx.error(
                     file.span(),
                     // The mesh error names the full path that was tried.
                     format!("cannot load mesh `{relative}`: {e}"),
                 )
             })?;
+            if smooth {
+                // Area-weighted vertex normals for meshes that have none: in
+                // place where a mesh has one user (fresh from the file), once
+                // per mesh where parts share it (glTF nodes).
+                let mut shared: HashMap<*const Mesh, Arc<Mesh>> = HashMap::new();
+                for part in &mut model.parts {
+                    if !part.mesh.normals.is_empty() {
+                        continue;
+                    }
+                    if let Some(mesh) = Arc::get_mut(&mut part.mesh) {
+                        mesh.normals = smooth_normals(&mesh.positions, &mesh.triangles);
+                        continue;
+                    }
+                    let original = &part.mesh;
+                    part.mesh = shared
+                        .entry(Arc::as_ptr(original))
+                        .or_insert_with(|| {
+                            let mut mesh = (**original).clone();
+                            mesh.normals = smooth_normals(&mesh.positions, &mesh.triangles);
+                            Arc::new(mesh)
+                        })
+                        .clone();
+                }
+            }
             let ids = model
                 .parts
                 .iter()
@@ -758,7 +795,7 @@ fn read_mesh(
                 })
                 .collect();
             let entry = (Arc::new(model), ids);
-            cache.models.insert(path.clone(), entry.clone());
+            cache.models.insert(key, entry.clone());
             entry
         }
     };

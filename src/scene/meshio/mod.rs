@@ -3,6 +3,7 @@
 
 mod gltf;
 mod obj;
+pub use obj::smooth_normals;
 pub mod ply;
 
 use crate::geometry::{Mesh, MeshDataError};
