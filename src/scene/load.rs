@@ -728,12 +728,15 @@ fn formula_error(ctx: &Ctx, v: &Value, formula: &str, column: usize, message: &s
     }
 }
 
+/// A model and the indices its parts' materials got in the scene's list.
+type LoadedModel = (Arc<Model>, Vec<Option<u32>>);
+
 /// Mesh files loaded so far (each is read once, however many objects use it),
 /// with the indices their materials got in the scene's material list.
 #[derive(Default)]
 struct MeshCache {
     /// By path and whether smooth normals were asked for.
-    models: HashMap<(PathBuf, bool), (Arc<Model>, Vec<Option<u32>>)>,
+    models: HashMap<(PathBuf, bool), LoadedModel>,
 }
 
 /// A `shape = "mesh"` object: one object per part of the file, each an
