@@ -419,10 +419,10 @@ fn smooth_option_makes_vertex_normals() {
         format!("{head}{}", object("smooth = \"yes\"\n")),
     )
     .unwrap();
-    let err = glint::scene::load_scene_file(&dir.path().join("bad.toml"))
-        .err()
-        .expect("a string is not a boolean")
-        .to_string();
+    let Err(err) = glint::scene::load_scene_file(&dir.path().join("bad.toml")) else {
+        panic!("a string is not a boolean");
+    };
+    let err = err.to_string();
     assert!(
         err.contains("bad.toml:7:10") && err.contains("expected true or false"),
         "{err}"
