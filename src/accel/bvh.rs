@@ -240,6 +240,25 @@ impl Bvh {
         self.nodes.first().map_or(Aabb::EMPTY, BvhNode::bounds)
     }
 
+    /// Nodes in the tree (`nodes.len()` also counts the slots a parallel
+    /// build left unused).
+    pub fn node_count(&self) -> usize {
+        let mut count = 0;
+        let mut stack = if self.nodes.is_empty() {
+            vec![]
+        } else {
+            vec![0usize]
+        };
+        while let Some(i) = stack.pop() {
+            count += 1;
+            let n = &self.nodes[i];
+            if n.count == 0 {
+                stack.extend([i + 1, n.offset as usize]);
+            }
+        }
+        count
+    }
+
     /// Bytes of nodes and indices.
     pub fn bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<BvhNode>() + self.indices.len() * 4
@@ -853,6 +872,11 @@ mod tests {
         let b = boxes(20_000, 3);
         let bvh = Bvh::build(&b);
         bvh.validate(&b).unwrap();
+        // Built in parallel (above PARALLEL_THRESHOLD): the array has unused
+        // slots, the tree itself 2·leaves − 1 nodes.
+        let leaves = bvh.nodes.iter().filter(|n| n.count > 0).count();
+        assert_eq!(bvh.node_count(), 2 * leaves - 1);
+        assert!(bvh.nodes.len() > bvh.node_count());
         let mut rng = crate::render::Pcg32::new(9, 2);
         for _ in 0..2000 {
             let o =

@@ -139,7 +139,7 @@ impl Scene {
     pub fn geometry_stats(&self) -> GeometryStats {
         let mut seen = std::collections::HashSet::new();
         let mut g = GeometryStats {
-            bvh_nodes: self.tlas.nodes.len() as u64,
+            bvh_nodes: self.tlas.node_count() as u64,
             bvh_bytes: self.tlas.bytes() as u64,
             ..GeometryStats::default()
         };
