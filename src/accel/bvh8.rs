@@ -290,10 +290,10 @@ impl Bvh8 {
             return Bvh8::default();
         };
         let bounds = Some(root.bounds());
-        if root.count > 0 {
+        if let Some((first, count)) = leaf_range(bvh, 0) {
             // A single leaf: one node with one child.
             let mut n = Bvh8Node::EMPTY_NODE;
-            n.set(0, &root.bounds(), LEAF | root.offset, root.count);
+            n.set(0, &root.bounds(), LEAF | first, count);
             return Bvh8 {
                 nodes: vec![n],
                 bounds,
@@ -308,10 +308,10 @@ impl Bvh8 {
         while let Some((range, w)) = todo.pop() {
             let (children, len) = collapse(bvh, range);
             let mut node = Bvh8Node::EMPTY_NODE;
-            for (k, &(c, end)) in children[..len].iter().enumerate() {
+            for (k, &Child { node: c, end, leaf }) in children[..len].iter().enumerate() {
                 let child = &bvh.nodes[c];
-                if child.count > 0 {
-                    node.set(k, &child.bounds(), LEAF | child.offset, child.count);
+                if let Some((first, count)) = leaf {
+                    node.set(k, &child.bounds(), LEAF | first, count);
                 } else if end - c > split {
                     node.set(k, &child.bounds(), top.len() as u32, 0);
                     todo.push(((c, end), top.len()));
@@ -714,28 +714,34 @@ impl Bvh8 {
     }
 }
 
-/// Up to eight descendants of binary node `range.0` that together cover it,
-/// each with the end of its subtree's node range: its children, with the
-/// interior one of largest surface area replaced by its own children while
-/// there is room.
-fn collapse(bvh: &Bvh, range: (usize, usize)) -> ([(usize, usize); WIDTH], usize) {
+/// Up to eight descendants of binary node `range.0` that together cover it:
+/// its children, with the interior one of largest surface area replaced by
+/// its own children while there is room (subtrees small enough to become
+/// leaves are not expanded).
+fn collapse(bvh: &Bvh, range: (usize, usize)) -> ([Child; WIDTH], usize) {
     let (b, end) = range;
     let right = bvh.nodes[b].offset as usize;
-    // Surface area of interior children, −1 for leaves (never expanded).
-    let area = |i: usize| {
-        let n = &bvh.nodes[i];
-        if n.count > 0 {
-            return -1.0;
-        }
-        let e = (n.bounds().max - n.bounds().min).max(Vec3::ZERO);
-        e.x * e.y + e.y * e.z + e.z * e.x
+    // With the surface area of interior children, −1 for leaves (never
+    // expanded).
+    let child = |i: usize, end: usize| {
+        let leaf = leaf_range(bvh, i);
+        let area = if leaf.is_some() {
+            -1.0
+        } else {
+            let n = &bvh.nodes[i];
+            let e = (n.bounds().max - n.bounds().min).max(Vec3::ZERO);
+            e.x * e.y + e.y * e.z + e.z * e.x
+        };
+        (Child { node: i, end, leaf }, area)
     };
-    let mut children = [(0, 0); WIDTH];
+    let mut children = [Child {
+        node: 0,
+        end: 0,
+        leaf: None,
+    }; WIDTH];
     let mut areas = [0f32; WIDTH];
-    children[0] = (b + 1, right);
-    children[1] = (right, end);
-    areas[0] = area(b + 1);
-    areas[1] = area(right);
+    (children[0], areas[0]) = child(b + 1, right);
+    (children[1], areas[1]) = child(right, end);
     let mut len = 2;
     while len < WIDTH {
         // The largest interior child (first of equals).
@@ -748,15 +754,67 @@ fn collapse(bvh: &Bvh, range: (usize, usize)) -> ([(usize, usize); WIDTH], usize
         if areas[k] < 0.0 {
             break;
         }
-        let (c, c_end) = children[k];
+        let Child {
+            node: c,
+            end: c_end,
+            ..
+        } = children[k];
         let c_right = bvh.nodes[c].offset as usize;
-        children[k] = (c + 1, c_right);
-        areas[k] = area(c + 1);
-        children[len] = (c_right, c_end);
-        areas[len] = area(c_right);
+        (children[k], areas[k]) = child(c + 1, c_right);
+        (children[len], areas[len]) = child(c_right, c_end);
         len += 1;
     }
     (children, len)
+}
+
+/// A child of a wide node under construction: a binary node, the end of its
+/// subtree's node range, and its primitives if it becomes a leaf.
+#[derive(Clone, Copy)]
+struct Child {
+    node: usize,
+    end: usize,
+    leaf: Option<(u32, u32)>,
+}
+
+/// Binary subtrees of at most this many primitives become one leaf of the
+/// wide tree: its triangles are tested in one batch of SIMD lanes, which
+/// costs less than visiting a node for them.
+const MERGE: u32 = 4;
+
+/// The primitives `(first, count)` of binary node `i` if it becomes a leaf of
+/// the wide tree: a leaf, or a subtree of at most [`MERGE`] primitives (a
+/// subtree's primitives are contiguous in leaf order).
+#[inline]
+fn leaf_range(bvh: &Bvh, i: usize) -> Option<(u32, u32)> {
+    let n = &bvh.nodes[i];
+    if n.count > 0 {
+        return Some((n.offset, n.count));
+    }
+    // Depth-first, leftmost leaf first; every split leaves at least one
+    // primitive on each side, so a small subtree is also shallow.
+    let mut stack = [(0usize, 0u32); MERGE as usize + 1];
+    let (mut len, mut first, mut count) = (1, None, 0);
+    stack[0] = (i, 0);
+    while len > 0 {
+        len -= 1;
+        let (j, depth) = stack[len];
+        let n = &bvh.nodes[j];
+        if n.count > 0 {
+            first.get_or_insert(n.offset);
+            count += n.count;
+            if count > MERGE {
+                return None;
+            }
+        } else {
+            if depth + 1 >= MERGE || len + 2 > stack.len() {
+                return None;
+            }
+            stack[len] = (n.offset as usize, depth + 1);
+            stack[len + 1] = (j + 1, depth + 1);
+            len += 2;
+        }
+    }
+    first.map(|f| (f, count))
 }
 
 /// The number of wide nodes [`collapse_into`] makes of a binary subtree.
@@ -769,7 +827,8 @@ fn subtree_size(bvh: &Bvh, range: (usize, usize)) -> usize {
         todo.extend(
             children[..len]
                 .iter()
-                .filter(|&&(c, _)| bvh.nodes[c].count == 0),
+                .filter(|c| c.leaf.is_none())
+                .map(|c| (c.node, c.end)),
         );
     }
     size
@@ -790,10 +849,10 @@ fn collapse_into(
     while let Some((range, w)) = todo.pop() {
         let (children, len) = collapse(bvh, range);
         let mut node = Bvh8Node::EMPTY_NODE;
-        for (k, &(c, end)) in children[..len].iter().enumerate() {
+        for (k, &Child { node: c, end, leaf }) in children[..len].iter().enumerate() {
             let child = &bvh.nodes[c];
-            if child.count > 0 {
-                node.set(k, &child.bounds(), LEAF | child.offset, child.count);
+            if let Some((first, count)) = leaf {
+                node.set(k, &child.bounds(), LEAF | first, count);
             } else {
                 node.set(k, &child.bounds(), (base + next) as u32, 0);
                 todo.push(((c, end), next));
