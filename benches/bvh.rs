@@ -13,7 +13,10 @@
 //! and any files listed in `GLINT_BENCH_MESHES` (colon-separated), e.g. the
 //! `icosphere_8.ply` that the Embree script writes, to measure the very same file.
 
-use criterion::{BatchSize, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{
+    BatchSize, BenchmarkGroup, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main,
+};
 use glam::Vec3;
 use glint::geometry::testgen::bumpy_icosphere;
 use glint::geometry::{Mesh, TraceCounters};
@@ -135,6 +138,38 @@ fn meshes() -> Vec<BenchMesh> {
     out
 }
 
+/// Prints the work per ray (nodes visited, triangle tests), then times
+/// tracing all `rays` on both cores.
+fn trace_rays(
+    g: &mut BenchmarkGroup<WallTime>,
+    kind: &str,
+    name: &str,
+    rays: &[Ray],
+    trace: impl Fn(&Ray, &mut TraceCounters) -> bool + Sync,
+) {
+    let mut c = TraceCounters::default();
+    for r in rays {
+        trace(r, &mut c);
+    }
+    let n = rays.len().max(1) as f64;
+    eprintln!(
+        "  {kind}: {:.1} nodes visited, {:.1} triangle tests per ray",
+        c.bvh.nodes_visited as f64 / n,
+        c.bvh.primitive_tests as f64 / n
+    );
+    g.throughput(Throughput::Elements(rays.len() as u64));
+    g.bench_function(BenchmarkId::new(kind, name), |b| {
+        b.iter(|| {
+            rays.par_chunks(4096)
+                .map(|chunk| {
+                    let mut c = TraceCounters::default();
+                    chunk.iter().filter(|r| trace(r, &mut c)).count()
+                })
+                .sum::<usize>()
+        })
+    });
+}
+
 fn bench(c: &mut Criterion) {
     for (name, v, f, view, up) in meshes() {
         let mesh = Mesh::new(v.clone(), f.clone(), Vec::new(), Vec::new()).expect("valid mesh");
@@ -148,26 +183,6 @@ fn bench(c: &mut Criterion) {
             100.0 * rays.hit_fraction,
             rays.shadow.len()
         );
-        // Work per ray, for comparison with other BVH layouts.
-        for (kind, list, any) in [
-            ("primary", &rays.primary, false),
-            ("shadow", &rays.shadow, true),
-        ] {
-            let mut c = TraceCounters::default();
-            for r in list.iter() {
-                if any {
-                    mesh.occludes_object(r, &mut c);
-                } else {
-                    mesh.intersect_object(r, &mut c);
-                }
-            }
-            let n = list.len().max(1) as f64;
-            eprintln!(
-                "  {kind}: {:.1} nodes visited, {:.1} triangle tests per ray",
-                c.bvh.nodes_visited as f64 / n,
-                c.bvh.primitive_tests as f64 / n
-            );
-        }
         let mut g = c.benchmark_group("bvh");
         g.sample_size(10);
         g.throughput(Throughput::Elements(f.len() as u64));
@@ -183,35 +198,11 @@ fn bench(c: &mut Criterion) {
                 BatchSize::LargeInput,
             )
         });
-        g.throughput(Throughput::Elements(rays.primary.len() as u64));
-        g.bench_function(BenchmarkId::new("primary", &name), |b| {
-            b.iter(|| {
-                rays.primary
-                    .par_chunks(4096)
-                    .map(|chunk| {
-                        let mut c = TraceCounters::default();
-                        chunk
-                            .iter()
-                            .filter(|r| mesh.intersect_object(r, &mut c).is_some())
-                            .count()
-                    })
-                    .sum::<usize>()
-            })
+        trace_rays(&mut g, "primary", &name, &rays.primary, |r, c| {
+            mesh.intersect_object(r, c).is_some()
         });
-        g.throughput(Throughput::Elements(rays.shadow.len() as u64));
-        g.bench_function(BenchmarkId::new("shadow", &name), |b| {
-            b.iter(|| {
-                rays.shadow
-                    .par_chunks(4096)
-                    .map(|chunk| {
-                        let mut c = TraceCounters::default();
-                        chunk
-                            .iter()
-                            .filter(|r| mesh.occludes_object(r, &mut c))
-                            .count()
-                    })
-                    .sum::<usize>()
-            })
+        trace_rays(&mut g, "shadow", &name, &rays.shadow, |r, c| {
+            mesh.occludes_object(r, c)
         });
         g.finish();
     }
