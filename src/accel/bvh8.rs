@@ -19,6 +19,7 @@ use crate::math::{Aabb, Ray, Vec3};
 use glam::Vec4;
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Children per node.
 pub const WIDTH: usize = 8;
@@ -219,13 +220,25 @@ mod avx {
     }
 }
 
+/// Set by [`force_portable`]: traverse with the portable lanes even where the
+/// CPU has AVX.
+static FORCE_PORTABLE: AtomicBool = AtomicBool::new(false);
+
+/// Makes every traversal in the process use the portable (SSE) node test,
+/// or, with `false`, the fastest the CPU has again. The two give
+/// bit-identical results; this exists so that tests (and users chasing a
+/// suspected kernel bug) can run both on one machine.
+pub fn force_portable(portable: bool) {
+    FORCE_PORTABLE.store(portable, Ordering::Relaxed);
+}
+
 /// Whether the 256-bit lane test can run here (checked once, then cached by
-/// the standard library).
+/// the standard library) and is not switched off by [`force_portable`].
 #[inline(always)]
 fn has_avx() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx")
+        !FORCE_PORTABLE.load(Ordering::Relaxed) && std::arch::is_x86_feature_detected!("avx")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {

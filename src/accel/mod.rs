@@ -5,4 +5,4 @@ mod bvh;
 mod bvh8;
 
 pub use bvh::{Bvh, BvhNode, PrimRef, TraversalCounters};
-pub use bvh8::{Bvh8, Bvh8Node};
+pub use bvh8::{Bvh8, Bvh8Node, force_portable};

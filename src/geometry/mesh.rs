@@ -4,7 +4,7 @@
 use super::triangle::{LANES, TriangleLanes, intersect_mt_lanes, intersect_watertight};
 use super::{ShapeHit, SurfacePoint, TraceCounters};
 use crate::accel::{Bvh, Bvh8, PrimRef};
-use crate::math::{Aabb, Ray, Transform, Vec3, gamma};
+use crate::math::{Aabb, Ray, Transform, Vec3, gamma, normalize_robust, triangle_normal};
 use glam::{Affine3A, Mat3A, Vec2, Vec4};
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -221,7 +221,7 @@ impl Mesh {
             if let Some((h, on_edge)) =
                 intersect_watertight(ray.o, ray.d, v0, v1, v2, ray.t_min, ray.t_max)
             {
-                let n = (v1 - v0).cross(v2 - v0).normalize_or_zero();
+                let n = triangle_normal(v0, v1, v2);
                 hit(h.t, (n.dot(ray.d) / d_len).abs(), on_edge);
             }
             false
@@ -271,7 +271,7 @@ impl Mesh {
         let b0 = (1.0 - b1 - b2).max(0.0);
         let p = b0 * v0 + b1 * v1 + b2 * v2;
         let p_err = gamma(7) * ((b0 * v0).abs() + (b1 * v1).abs() + (b2 * v2).abs());
-        let n = (v1 - v0).cross(v2 - v0).normalize_or_zero();
+        let n = triangle_normal(v0, v1, v2);
         let ns = if self.normals.is_empty() {
             n
         } else {
@@ -280,7 +280,8 @@ impl Mesh {
             let s = Vec3::from(nm[a as usize]) * b0
                 + Vec3::from(nm[b as usize]) * b1
                 + Vec3::from(nm[c as usize]) * b2;
-            s.try_normalize().unwrap_or(n)
+            let ns = normalize_robust(s);
+            if ns == Vec3::ZERO { n } else { ns }
         };
         SurfacePoint { p, p_err, n, ns }
     }
@@ -288,14 +289,17 @@ impl Mesh {
     /// Texture coordinates at an object-space point of triangle `prim`:
     /// interpolated from the mesh's uvs, or the barycentrics `(b1, b2)`.
     pub fn uv_object(&self, p: Vec3, prim: u32) -> Vec2 {
+        // In f64: |n|² is a fourth power of the triangle's size, which f32
+        // cannot hold for meshes written at scales past 1e±9.
         let (v0, v1, v2) = self.vertices(prim);
+        let (v0, v1, v2, p) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3(), p.as_dvec3());
         let n = (v1 - v0).cross(v2 - v0);
         let area = n.length_squared();
         if area == 0.0 {
             return Vec2::ZERO;
         }
-        let b1 = (p - v0).cross(v2 - v0).dot(n) / area;
-        let b2 = (v1 - v0).cross(p - v0).dot(n) / area;
+        let b1 = ((p - v0).cross(v2 - v0).dot(n) / area) as f32;
+        let b2 = ((v1 - v0).cross(p - v0).dot(n) / area) as f32;
         if self.uvs.is_empty() {
             return Vec2::new(b1, b2);
         }
@@ -416,8 +420,8 @@ impl MeshInstance {
                     p_err: x.abs_linear * (s.p_err + back)
                         + gamma(3)
                             * (x.abs_linear * s.p.abs() + x.world_from_object.translation.abs()),
-                    n: (x.normal_to_world * s.n).normalize_or_zero(),
-                    ns: (x.normal_to_world * s.ns).normalize_or_zero(),
+                    n: normalize_robust(x.normal_to_world * s.n),
+                    ns: normalize_robust(x.normal_to_world * s.ns),
                 }
             }
         }

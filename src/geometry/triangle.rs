@@ -22,11 +22,22 @@ pub struct TriangleHit {
 /// a hit iff `b1 ≥ 0`, `b2 ≥ 0`, `b1 + b2 ≤ 1` and `t ∈ [t_min, t_max)`.
 ///
 /// The three edge tests are made on the numerators and allow each its
-/// floating-point error bound (γ(8) times the sum of the magnitudes of the
-/// products that form it, Higham §3.1), instead of an exact comparison with
-/// zero: two triangles sharing an edge then overlap by at most a few ulps
-/// rather than leaving a gap between them that a ray can slip through. A
-/// ray exactly on a shared edge may hit both; the closest-hit search keeps one.
+/// floating-point error bound instead of an exact comparison with zero, so
+/// that two triangles sharing an edge overlap by a few ulps rather than
+/// leave a gap that a ray can slip through (a ray exactly on a shared edge
+/// may hit both; the closest-hit search keeps one). The bound must hold
+/// against the exact value of each numerator as a polynomial in the inputs
+/// `o, d, v0, v1, v2`, so it is taken over the magnitudes of the *factors*:
+/// `n1 = (d × E2)·S` is a sum of six products `±d_a·E2_b·S_c`, each formed
+/// through at most 7 roundings (E2 and S, the product, the cross product's
+/// difference, the dot product's product and two sums), so
+/// `|fl(n1) − n1| ≤ γ(7)·(|d| ⊗ |E2|)·|S|`, where `a ⊗ b` is the cross
+/// product with every difference made a sum (Higham §3.1). The magnitude of
+/// the rounded cross product `|S1|` would not do: where `d × E2` cancels
+/// (steep triangles, seen 1–3° from the ray) it is hundreds of times smaller
+/// than the error it carries, and rays through shared vertices leaked. The
+/// third edge function `det − n1 − n2` is bounded by the sum of the three
+/// bounds; the factor γ(12) covers the bounds' own rounding and that sum.
 #[inline(always)]
 pub fn intersect_mt(
     o: Vec3,
@@ -51,10 +62,12 @@ pub fn intersect_mt(
     let n1 = s1.dot(s) * sign;
     let n2 = s2.dot(d) * sign;
     let det_abs = det.abs();
-    let g = gamma(8);
-    let err1 = g * s1.abs().dot(s.abs());
-    let err2 = g * s2.abs().dot(d.abs());
-    let err_det = g * s1.abs().dot(e1.abs());
+    let g = gamma(12);
+    let (d_abs, s_abs) = (d.abs(), s.abs());
+    let d_e2 = abs_cross(d_abs, e2.abs());
+    let err1 = g * d_e2.dot(s_abs);
+    let err2 = g * abs_cross(s_abs, e1.abs()).dot(d_abs);
+    let err_det = g * d_e2.dot(e1.abs());
     if n1 < -err1 || n2 < -err2 || n1 + n2 > det_abs + err1 + err2 + err_det {
         return None;
     }
@@ -69,6 +82,18 @@ pub fn intersect_mt(
         b1: (n1 * inv_abs).clamp(0.0, 1.0),
         b2: (n2 * inv_abs).clamp(0.0, 1.0),
     })
+}
+
+/// `|a| ⊗ |b|` for `a`, `b` already made non-negative: the cross product with
+/// its differences made sums, `(a_y·b_z + a_z·b_y, …)`, which bounds the
+/// magnitudes that each component of `a × b` is formed from.
+#[inline(always)]
+fn abs_cross(a: Vec3, b: Vec3) -> Vec3 {
+    Vec3::new(
+        a.y * b.z + a.z * b.y,
+        a.z * b.x + a.x * b.z,
+        a.x * b.y + a.y * b.x,
+    )
 }
 
 /// Triangles tested at once by [`intersect_mt_lanes`].
@@ -115,8 +140,14 @@ pub fn intersect_mt_lanes(
         ]
     };
     let dot = |a: &V, b: &V| -> Vec4 { (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2] };
-    let abs_dot = |a: &V, b: &V| -> Vec4 {
-        (a[0].abs() * b[0].abs() + a[1].abs() * b[1].abs()) + a[2].abs() * b[2].abs()
+    let abs = |a: &V| -> V { [a[0].abs(), a[1].abs(), a[2].abs()] };
+    // As `abs_cross`, on operands already made non-negative.
+    let abs_cross = |a: &V, b: &V| -> V {
+        [
+            a[1] * b[2] + a[2] * b[1],
+            a[2] * b[0] + a[0] * b[2],
+            a[0] * b[1] + a[1] * b[0],
+        ]
     };
     let splat = |v: Vec3| -> V { [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)] };
     let [v0, v1, v2] = &tri.v;
@@ -131,10 +162,12 @@ pub fn intersect_mt_lanes(
     let n1 = dot(&s1, &s) * sign;
     let n2 = dot(&s2, &d) * sign;
     let det_abs = det.abs();
-    let g = Vec4::splat(gamma(8));
-    let err1 = g * abs_dot(&s1, &s);
-    let err2 = g * abs_dot(&s2, &d);
-    let err_det = g * abs_dot(&s1, &e1);
+    let g = Vec4::splat(gamma(12));
+    let (d_abs, s_abs) = (abs(&d), abs(&s));
+    let d_e2 = abs_cross(&d_abs, &abs(&e2));
+    let err1 = g * dot(&d_e2, &s_abs);
+    let err2 = g * dot(&abs_cross(&s_abs, &abs(&e1)), &d_abs);
+    let err_det = g * dot(&d_e2, &abs(&e1));
     let inv = det.recip();
     let t = dot(&s2, &e2) * inv;
     let inv_abs = inv.abs();

@@ -17,6 +17,24 @@ pub type Color = glam::Vec3A;
 
 pub use glam::Vec3A as Vec3;
 
+/// The unit vector along `v`, or zero for a zero or non-finite `v`, computed
+/// in f64: the squared length of an f32 vector overflows f32 above about
+/// 1.8e19 and underflows below 1e-19 (so `glam`'s `normalize` fails for
+/// meshes written at such scales), but never f64.
+#[inline]
+pub fn normalize_robust(v: Vec3) -> Vec3 {
+    v.as_dvec3().normalize_or_zero().as_vec3a()
+}
+
+/// The unit normal `(v1 − v0) × (v2 − v0)/|…|` of a triangle (counter-clockwise
+/// winding seen from the side it points to), or zero for a degenerate one;
+/// in f64, so that it exists for triangles of any size f32 can hold.
+#[inline]
+pub fn triangle_normal(v0: Vec3, v1: Vec3, v2: Vec3) -> Vec3 {
+    let (v0, v1, v2) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
+    (v1 - v0).cross(v2 - v0).normalize_or_zero().as_vec3a()
+}
+
 /// Builds an orthonormal basis `(b1, b2)` perpendicular to the unit vector `n`.
 ///
 /// Duff et al., "Building an Orthonormal Basis, Revisited", JCGT 6(1), 2017:
@@ -33,6 +51,22 @@ pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn normals_of_tiny_and_huge_triangles_exist() {
+        for scale in [1e-30f32, 1e-12, 1e-6, 1.0, 1e6, 1e12, 1e30] {
+            let n = triangle_normal(Vec3::ZERO, Vec3::X * scale, Vec3::Y * scale);
+            assert_eq!(n, Vec3::Z, "scale {scale}");
+            let v = Vec3::new(3.0, 0.0, 4.0) * scale;
+            assert!((normalize_robust(v) - Vec3::new(0.6, 0.0, 0.8)).length() < 1e-6);
+        }
+        assert_eq!(normalize_robust(Vec3::ZERO), Vec3::ZERO);
+        assert_eq!(normalize_robust(Vec3::new(f32::NAN, 0.0, 1.0)), Vec3::ZERO);
+        assert_eq!(
+            triangle_normal(Vec3::ZERO, Vec3::X, Vec3::X * 2.0),
+            Vec3::ZERO
+        );
+    }
 
     #[test]
     fn orthonormal_basis_is_orthonormal() {

@@ -1,8 +1,7 @@
-//! A scene around a mesh file, for `glint render model.ply`: the camera and
-//! light that `shared/anchors/common.py` uses for the peers' benchmarks, a
-//! white Lambertian material where the file gives none, and ray casting at
-//! 1920×1080 — one camera ray and one shadow ray per pixel, the same work as
-//! Mitsuba's `direct` integrator in `mitsuba_bench.py`.
+//! A scene around a mesh file, for `glint render model.ply`: a camera that
+//! frames the whole model, a point light and a sky-grey fill, a white
+//! Lambertian material where the file gives none, and ray casting at
+//! 1920×1080 — one camera ray and one shadow ray per pixel.
 
 use super::meshio::Model;
 use super::{Camera, Light, Material, Object, Scene, SceneFile};
@@ -10,15 +9,28 @@ use crate::geometry::{MeshInstance, Shape};
 use crate::math::{Aabb, Color, Vec3};
 use crate::settings::{IntegratorKind, RenderSettings};
 
+/// The background of a mesh shown on its own: a light grey-blue sky.
+const SKY: Color = Color::new(0.42, 0.5, 0.62);
+/// Ambient light `A` of the scene around a mesh, so that what the point
+/// light does not reach is dark grey rather than black.
+const AMBIENT_FILL: f32 = 0.15;
+
 /// Builds the scene. `view` points from the mesh's centre towards the eye,
-/// `up` is the up axis (z for z-up scans). With the bounding box's centre `c`
-/// and `r = 0.6·(largest extent)`, the eye is at `c + vieŵ·r/sin 20°` and the
-/// vertical field of view is 40°, so a sphere of radius `r` fills the frame's
-/// height; the point light is at `c + 3r(−0.5 right + 0.8 up + 0.33 back)`
-/// with intensity `9r²` (about unit irradiance at the mesh). A camera in the
-/// file (glTF) is used instead when there is one.
+/// `up` is the up axis (z for z-up scans).
 ///
-/// Returns `None` if `view` and `up` are parallel or zero.
+/// The camera frames the whole model: it looks at the centre `c` of the
+/// bounding box, from `c + vieŵ·D`, with a vertical field of view of 40° and
+/// `D = 1.1·R / sin 20°`, where `R` is the radius of the sphere around the
+/// box, so that the model fits in the frame whichever way it turns (with a
+/// margin of a tenth). A point light above, left of and behind the eye
+/// (`c + 3R(−0.5 right + 0.8 up + 0.33 back)`, intensity `9R²`: about unit
+/// irradiance at the model) casts the shadows; a sky-grey background and an
+/// ambient fill of 0.15 keep the parts it does not reach readable against
+/// the background. A camera in the file (glTF) is used instead when there
+/// is one.
+///
+/// Returns `None` if `view` and `up` are parallel or zero, or the model has
+/// no finite extent.
 pub fn mesh_scene(model: &Model, view: Vec3, up: Vec3) -> Option<SceneFile> {
     let mut materials = vec![Material::default_diffuse()];
     let mut objects = Vec::new();
@@ -39,11 +51,21 @@ pub fn mesh_scene(model: &Model, view: Vec3, up: Vec3) -> Option<SceneFile> {
         });
     }
     let c = (bounds.min + bounds.max) * 0.5;
-    let r = 0.6 * (bounds.max - bounds.min).max_element();
+    // Half the diagonal, in f64: its square overflows f32 for boxes past 1e19.
+    let r = ((bounds.max - bounds.min).as_dvec3().length() * 0.5) as f32;
+    if !(r.is_finite() && c.is_finite()) {
+        return None;
+    }
+    // A single point or a flat model still needs a distance to look from.
+    let r = if r > 0.0 {
+        r
+    } else {
+        c.abs().max_element().max(1.0)
+    };
     let back = view.try_normalize()?;
     let right = up.cross(back).try_normalize()?;
     let up = back.cross(right);
-    let eye = c + back * r / 20f32.to_radians().sin();
+    let eye = c + back * (1.1 * r / 20f32.to_radians().sin());
     let camera = match &model.camera {
         Some(fc) => Camera::try_new(
             fc.position.into(),
@@ -63,8 +85,8 @@ pub fn mesh_scene(model: &Model, view: Vec3, up: Vec3) -> Option<SceneFile> {
             objects,
             materials,
             vec![light],
-            Color::ZERO,
-            Color::ZERO,
+            SKY,
+            Color::splat(AMBIENT_FILL),
         ),
         settings: RenderSettings {
             width: 1920,

@@ -92,17 +92,20 @@ pub fn read(path: &Path) -> Result<Model, MeshError> {
     })
 }
 
-/// Area-weighted vertex normals.
+/// Area-weighted vertex normals, summed in f64 (the area of a triangle
+/// written at a scale of 1e±10 is out of f32's reach).
 pub fn smooth_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
-    let mut n = vec![Vec3::ZERO; positions.len()];
+    let mut n = vec![glam::DVec3::ZERO; positions.len()];
     for t in triangles {
-        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let [a, b, c] = t.map(|i| positions[i as usize].as_dvec3());
         let face = (b - a).cross(c - a);
         for &i in t {
             n[i as usize] += face;
         }
     }
-    n.into_iter().map(|v| v.normalize_or_zero()).collect()
+    n.into_iter()
+        .map(|v| v.normalize_or_zero().as_vec3())
+        .collect()
 }
 
 fn map_material(m: &tobj::Material) -> Material {
