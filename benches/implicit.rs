@@ -40,6 +40,7 @@ fn frames(c: &mut Criterion) {
             s.background,
             s.ambient,
         )
+        .expect("the objects keep their valid material indices")
     };
     let scenes = [
         ("implicit_scene_512x512", s.clone()),

@@ -161,6 +161,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
             mut settings,
             seconds_mesh_load,
             seconds_mesh_build,
+            warnings,
         },
         scene_name,
     ) = match &args.scene {
@@ -180,6 +181,11 @@ fn run_render(args: RenderArgs) -> Result<()> {
             "the built-in Whitted scene".to_string(),
         ),
     };
+    if !args.quiet {
+        for w in &warnings {
+            eprintln!("warning: {w}");
+        }
+    }
     // Reading files and parsing vs. building BVHs (mesh BVHs are built while
     // the scene loads; the top-level BVH with the scene).
     let seconds_total = load_start.elapsed().as_secs_f64();
@@ -288,6 +294,9 @@ fn peak_rss_bytes() -> Option<u64> {
 
 fn run_info(path: &Path) -> Result<()> {
     let model = scene::meshio::load_mesh_file(path)?;
+    for w in &model.warnings {
+        eprintln!("warning: {w}");
+    }
     let mut bounds = glint::math::Aabb::EMPTY;
     let (mut vertices, mut triangles, mut nodes, mut bvh_bytes, mut bytes) = (0, 0, 0, 0, 0);
     let mut seen = std::collections::HashSet::new();

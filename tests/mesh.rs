@@ -241,6 +241,7 @@ fn instance_renders_like_the_baked_mesh() {
             glint::math::Color::ZERO,
             glint::math::Color::ZERO,
         )
+        .unwrap()
     };
     let settings = RenderSettings {
         width: 96,

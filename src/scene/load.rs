@@ -25,6 +25,7 @@
 //! material = "glass"
 //! ```
 
+use super::files::{FileError, read_text_file};
 use super::meshio::{Model, load_mesh_file, smooth_normals};
 use super::{Camera, CheckerMode, Light, Material, MaterialKind, Object, Scene, Texture};
 use crate::geometry::implicit::{HEART_BOUNDS, HEART_FORMULA, ImplicitError, torus_formula};
@@ -51,16 +52,15 @@ pub struct SceneFile {
     /// Seconds spent reading mesh files and building their BVHs.
     pub seconds_mesh_load: f64,
     pub seconds_mesh_build: f64,
+    /// The mesh files' warnings (see [`Model::warnings`]).
+    pub warnings: Vec<String>,
 }
 
 /// Why a scene could not be loaded. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("cannot read scene file `{}`", path.display())]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    #[error("cannot read scene file `{}`: {}", path.display(), reason.reason())]
+    Io { path: PathBuf, reason: FileError },
     #[error("{}:{line}:{column}: {message}", path.display())]
     Parse {
         path: PathBuf,
@@ -74,9 +74,9 @@ pub enum SceneError {
 
 /// Reads and parses the scene file at `path`.
 pub fn load_scene_file(path: &Path) -> std::result::Result<SceneFile, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+    let text = read_text_file(path).map_err(|reason| SceneError::Io {
         path: path.to_path_buf(),
-        source,
+        reason,
     })?;
     parse_scene(&text, path)
 }
@@ -467,11 +467,18 @@ fn read_document(ctx: &Ctx, doc: &DeTable, span: Range<usize>) -> Result<SceneFi
     }
     top.finish()?;
 
+    let scene = Scene::new(camera, objects, materials, lights, background, ambient)
+        .map_err(|e| ctx.error(span, e.to_string()))?;
     Ok(SceneFile {
-        scene: Scene::new(camera, objects, materials, lights, background, ambient),
+        scene,
         settings,
         seconds_mesh_load: cache.models.values().map(|m| m.0.seconds_load).sum(),
         seconds_mesh_build: cache.models.values().map(|m| m.0.seconds_build).sum(),
+        warnings: cache
+            .models
+            .values()
+            .flat_map(|m| m.0.warnings.iter().cloned())
+            .collect(),
     })
 }
 

@@ -87,7 +87,8 @@ pub fn mesh_scene(model: &Model, view: Vec3, up: Vec3) -> Option<SceneFile> {
             vec![light],
             SKY,
             Color::splat(AMBIENT_FILL),
-        ),
+        )
+        .expect("every object's material was pushed just before it"),
         settings: RenderSettings {
             width: 1920,
             height: 1080,
@@ -97,5 +98,6 @@ pub fn mesh_scene(model: &Model, view: Vec3, up: Vec3) -> Option<SceneFile> {
         },
         seconds_mesh_load: model.seconds_load,
         seconds_mesh_build: model.seconds_build,
+        warnings: model.warnings.clone(),
     })
 }

@@ -3,6 +3,7 @@
 //! queries [`Scene::occluded`] and [`Scene::transmittance`].
 
 mod camera;
+pub mod files;
 mod light;
 mod load;
 mod material;
@@ -90,16 +91,24 @@ pub struct Scene {
     linear: bool,
 }
 
+/// Why [`Scene::new`] could not build a scene from its parts.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum SceneBuildError {
+    #[error("object {object} has material {material}, but there are only {count} materials")]
+    MaterialOutOfRange {
+        object: usize,
+        material: u32,
+        count: usize,
+    },
+}
+
 /// Up to this many objects, rays test them one by one instead of using the
 /// top-level BVH.
 const LINEAR_OBJECTS: usize = 8;
 
 impl Scene {
-    /// Builds the top-level BVH over the objects.
-    ///
-    /// # Panics
-    /// If an object names a material index out of range (the loader checks
-    /// names before building).
+    /// Builds the top-level BVH over the objects. Fails if an object names a
+    /// material index out of range of `materials`.
     pub fn new(
         camera: Camera,
         objects: Vec<Object>,
@@ -107,7 +116,18 @@ impl Scene {
         lights: Vec<Light>,
         background: Color,
         ambient: Color,
-    ) -> Self {
+    ) -> Result<Self, SceneBuildError> {
+        if let Some((object, o)) = objects
+            .iter()
+            .enumerate()
+            .find(|(_, o)| o.material as usize >= materials.len())
+        {
+            return Err(SceneBuildError::MaterialOutOfRange {
+                object,
+                material: o.material,
+                count: materials.len(),
+            });
+        }
         let opaque = objects
             .iter()
             .map(|o| materials[o.material as usize].is_opaque())
@@ -120,7 +140,7 @@ impl Scene {
         // Infinite boxes are left out of the BVH by its builder.
         let tlas = Bvh::build(&bounds);
         let objects_len = objects.len();
-        Scene {
+        Ok(Scene {
             camera,
             objects,
             materials,
@@ -131,7 +151,7 @@ impl Scene {
             tlas,
             unbounded,
             linear: objects_len <= LINEAR_OBJECTS,
-        }
+        })
     }
 
     /// Counts and sizes of the scene's meshes and acceleration structures.

@@ -147,11 +147,26 @@ fn tokenize(text: &str) -> Result<Vec<(Token, usize)>, FormulaError> {
     Ok(out)
 }
 
+/// How deeply a formula may nest parentheses, function calls, signs and
+/// exponents: the parser recurses once per level, and a formula nested
+/// 10,000 deep would overflow its stack.
+pub const MAX_NESTING: usize = 100;
+
+/// The greatest height of a formula's expression tree (a chain `a + b + …`
+/// of n terms is n high): compiling and dropping the tree recurse over it.
+/// Formulas that high exceed the tape's [`super::MAX_TAPE`] operations anyway,
+/// unless they fold to constants.
+pub const MAX_HEIGHT: u32 = 1000;
+
 /// Parses a formula in x, y, z.
 pub fn parse(text: &str) -> Result<Expr, FormulaError> {
     let tokens = tokenize(text)?;
-    let mut p = Parser { tokens, pos: 0 };
-    let e = p.sum()?;
+    let mut p = Parser {
+        tokens,
+        pos: 0,
+        depth: 0,
+    };
+    let (e, _) = p.sum()?;
     match p.peek() {
         Token::End => Ok(e),
         Token::Sym(')') => Err(p.error("unmatched `)`".into())),
@@ -166,6 +181,25 @@ pub fn parse(text: &str) -> Result<Expr, FormulaError> {
 struct Parser {
     tokens: Vec<(Token, usize)>,
     pos: usize,
+    /// Current nesting depth (see [`MAX_NESTING`]).
+    depth: usize,
+}
+
+/// A parsed subexpression and the height of its tree.
+type Node = (Expr, u32);
+
+/// `op(a, b)`, unless the tree would be higher than [`MAX_HEIGHT`].
+fn binary(op: BinOp, (a, ha): Node, (b, hb): Node, column: usize) -> Result<Node, FormulaError> {
+    let h = ha.max(hb) + 1;
+    if h > MAX_HEIGHT {
+        return Err(FormulaError {
+            column,
+            message: format!(
+                "the formula is too long: its expression tree is more than {MAX_HEIGHT} operations deep"
+            ),
+        });
+    }
+    Ok((Expr::Binary(op, Box::new(a), Box::new(b)), h))
 }
 
 impl Parser {
@@ -201,7 +235,23 @@ impl Parser {
         }
     }
 
-    fn sum(&mut self) -> Result<Expr, FormulaError> {
+    /// Runs `parse` one nesting level deeper, or fails past [`MAX_NESTING`].
+    fn nested(
+        &mut self,
+        parse: impl FnOnce(&mut Self) -> Result<Node, FormulaError>,
+    ) -> Result<Node, FormulaError> {
+        if self.depth >= MAX_NESTING {
+            return Err(self.error(format!(
+                "the formula nests parentheses, functions, signs or powers more than {MAX_NESTING} levels deep"
+            )));
+        }
+        self.depth += 1;
+        let node = parse(self);
+        self.depth -= 1;
+        node
+    }
+
+    fn sum(&mut self) -> Result<Node, FormulaError> {
         let mut e = self.product()?;
         loop {
             let op = match self.peek() {
@@ -209,12 +259,13 @@ impl Parser {
                 Token::Sym('-') => BinOp::Sub,
                 _ => return Ok(e),
             };
+            let column = self.column();
             self.advance();
-            e = Expr::Binary(op, Box::new(e), Box::new(self.product()?));
+            e = binary(op, e, self.product()?, column)?;
         }
     }
 
-    fn product(&mut self) -> Result<Expr, FormulaError> {
+    fn product(&mut self) -> Result<Node, FormulaError> {
         let mut e = self.unary()?;
         loop {
             let op = match self.peek() {
@@ -222,36 +273,39 @@ impl Parser {
                 Token::Sym('/') => BinOp::Div,
                 _ => return Ok(e),
             };
+            let column = self.column();
             self.advance();
-            e = Expr::Binary(op, Box::new(e), Box::new(self.unary()?));
+            e = binary(op, e, self.unary()?, column)?;
         }
     }
 
-    fn unary(&mut self) -> Result<Expr, FormulaError> {
+    fn unary(&mut self) -> Result<Node, FormulaError> {
         if self.eat('-') {
-            return Ok(Expr::Neg(Box::new(self.unary()?)));
+            let (e, h) = self.nested(Self::unary)?;
+            return Ok((Expr::Neg(Box::new(e)), h + 1));
         }
         if self.eat('+') {
-            return self.unary();
+            return self.nested(Self::unary);
         }
         self.power()
     }
 
-    fn power(&mut self) -> Result<Expr, FormulaError> {
+    fn power(&mut self) -> Result<Node, FormulaError> {
         let base = self.atom()?;
+        let column = self.column();
         if self.eat('^') {
-            let exponent = self.unary()?;
-            return Ok(Expr::Binary(BinOp::Pow, Box::new(base), Box::new(exponent)));
+            let exponent = self.nested(Self::unary)?;
+            return binary(BinOp::Pow, base, exponent, column);
         }
         Ok(base)
     }
 
-    fn atom(&mut self) -> Result<Expr, FormulaError> {
+    fn atom(&mut self) -> Result<Node, FormulaError> {
         let column = self.column();
         match self.advance() {
-            Token::Num(n) => Ok(Expr::Num(n)),
+            Token::Num(n) => Ok((Expr::Num(n), 1)),
             Token::Sym('(') => {
-                let e = self.sum()?;
+                let e = self.nested(Self::sum)?;
                 if !self.eat(')') {
                     return Err(self.error(format!(
                         "expected `)` to close the `(` at column {column}, found {}",
@@ -271,14 +325,17 @@ impl Parser {
         }
     }
 
-    fn name(&mut self, name: &str, column: usize) -> Result<Expr, FormulaError> {
-        match name {
-            "x" => return Ok(Expr::Var(0)),
-            "y" => return Ok(Expr::Var(1)),
-            "z" => return Ok(Expr::Var(2)),
-            "pi" => return Ok(Expr::Num(std::f64::consts::PI)),
-            "e" => return Ok(Expr::Num(std::f64::consts::E)),
-            _ => {}
+    fn name(&mut self, name: &str, column: usize) -> Result<Node, FormulaError> {
+        let leaf = match name {
+            "x" => Some(Expr::Var(0)),
+            "y" => Some(Expr::Var(1)),
+            "z" => Some(Expr::Var(2)),
+            "pi" => Some(Expr::Num(std::f64::consts::PI)),
+            "e" => Some(Expr::Num(std::f64::consts::E)),
+            _ => None,
+        };
+        if let Some(leaf) = leaf {
+            return Ok((leaf, 1));
         }
         let Some(&(_, func, arity)) = Func::ALL.iter().find(|(n, _, _)| *n == name) else {
             let names: Vec<&str> = Func::ALL.iter().map(|(n, _, _)| *n).collect();
@@ -293,9 +350,9 @@ impl Parser {
         if !self.eat('(') {
             return Err(self.error(format!("expected `(` after the function `{name}`")));
         }
-        let mut args = vec![self.sum()?];
+        let mut args = vec![self.nested(Self::sum)?];
         while self.eat(',') {
-            args.push(self.sum()?);
+            args.push(self.nested(Self::sum)?);
         }
         if !self.eat(')') {
             return Err(self.error(format!(
@@ -313,7 +370,19 @@ impl Parser {
                 ),
             });
         }
-        Ok(Expr::Call(func, args))
+        let height = args.iter().map(|a| a.1).max().unwrap_or(0) + 1;
+        if height > MAX_HEIGHT {
+            return Err(FormulaError {
+                column,
+                message: format!(
+                    "the formula is too long: its expression tree is more than {MAX_HEIGHT} operations deep"
+                ),
+            });
+        }
+        Ok((
+            Expr::Call(func, args.into_iter().map(|a| a.0).collect()),
+            height,
+        ))
     }
 }
 
@@ -354,6 +423,33 @@ mod tests {
         assert!(parse("1.5e-3 * .5 + 2E2").is_ok());
         assert!(parse("(x² )").is_err());
         assert!(parse("x − y").is_ok());
+    }
+
+    #[test]
+    fn deep_nesting_is_an_error_not_a_stack_overflow() {
+        let n = 10_000;
+        for (text, what) in [
+            (format!("{}x{}", "(".repeat(n), ")".repeat(n)), "nests"),
+            (format!("{}x{}", "sqrt(".repeat(n), ")".repeat(n)), "nests"),
+            (format!("{}x", "-".repeat(n)), "nests"),
+            (format!("{}x", "+".repeat(n)), "nests"),
+            (format!("x{}", "^x".repeat(n)), "nests"),
+            (format!("x{}", "+x".repeat(n)), "deep"),
+            (format!("1{}", "*1".repeat(n)), "deep"),
+        ] {
+            let e = parse(&text).unwrap_err();
+            assert!(e.message.contains(what), "{}: {}", &text[..20], e.message);
+            assert!(e.column > 1 && e.column <= text.chars().count(), "{e}");
+        }
+        // Just inside the limits.
+        let ok = format!(
+            "{}x{}",
+            "(".repeat(MAX_NESTING - 1),
+            ")".repeat(MAX_NESTING - 1)
+        );
+        assert!(parse(&ok).is_ok());
+        let ok = format!("x{}", "+x".repeat(MAX_HEIGHT as usize - 1));
+        assert!(parse(&ok).is_ok());
     }
 
     #[test]

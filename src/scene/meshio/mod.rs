@@ -9,6 +9,7 @@ pub mod ply;
 use crate::geometry::{Mesh, MeshDataError};
 use crate::math::Transform;
 use crate::scene::Material;
+use crate::scene::files::FileError;
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -31,6 +32,11 @@ impl MeshError {
             element: element.to_string(),
             message: message.into(),
         }
+    }
+
+    /// The mesh file itself could not be read.
+    pub fn file(path: &Path, e: &FileError) -> Self {
+        MeshError::new(path, "file", e.reason())
     }
 }
 
@@ -111,6 +117,9 @@ pub struct Model {
     pub camera: Option<FileCamera>,
     pub seconds_load: f64,
     pub seconds_build: f64,
+    /// What was read in a way the file may not have meant (a missing
+    /// material library, say), one message each, naming the file.
+    pub warnings: Vec<String>,
 }
 
 impl Model {
@@ -127,9 +136,6 @@ pub fn load_mesh_file(path: &Path) -> Result<Model, MeshError> {
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
-    if !path.exists() {
-        return Err(MeshError::new(path, "file", "not found"));
-    }
     let start = Instant::now();
     let model = match ext.as_str() {
         "ply" => {
@@ -150,6 +156,7 @@ pub fn load_mesh_file(path: &Path) -> Result<Model, MeshError> {
                 camera: None,
                 seconds_load,
                 seconds_build: build.elapsed().as_secs_f64(),
+                warnings: Vec::new(),
             })
         }
         "obj" => obj::read(path),

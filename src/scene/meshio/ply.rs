@@ -9,6 +9,7 @@
 //! fixed size (the common case), the records are decoded in parallel.
 
 use super::{MeshError, RawMesh};
+use crate::scene::files::read_regular_file;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::path::Path;
@@ -134,8 +135,7 @@ impl Element {
 
 /// Reads a PLY file.
 pub fn read(path: &Path) -> Result<RawMesh, MeshError> {
-    let data = std::fs::read(path)
-        .map_err(|e| MeshError::new(path, "file", format!("cannot read it: {e}")))?;
+    let data = read_regular_file(path).map_err(|e| MeshError::file(path, &e))?;
     parse(path, &data)
 }
 
@@ -346,6 +346,11 @@ fn ascii(
     let mut tokens = text.split_ascii_whitespace();
     let mut polygon: Vec<u32> = Vec::new();
     for e in elements {
+        // Records without properties take no text: nothing to read, however
+        // many the header declares (a count of 10^18 must not loop).
+        if e.properties.is_empty() {
+            continue;
+        }
         let (roles, has_normals, has_uvs) = vertex_roles(e);
         let list = face_list(e);
         for i in 0..e.count {

@@ -1,0 +1,420 @@
+//! Hostile input: files that once crashed, hung, ran out of memory, read
+//! outside a model's folder or rendered NaN. Each must end in an error that
+//! names the file and the element (or, where the format allows it, load).
+
+use glint::scene::meshio::load_mesh_file;
+use glint::scene::{Texture, load_scene_file};
+use std::path::{Path, PathBuf};
+
+fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
+    let p = dir.join(name);
+    if let Some(parent) = p.parent() {
+        std::fs::create_dir_all(parent).unwrap();
+    }
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+/// The error of loading `path`, as text.
+fn load_error(path: &Path) -> String {
+    match load_mesh_file(path) {
+        Ok(_) => panic!("{} loaded", path.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+const TETRA_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+fn obj_with(dir: &Path, mtl: &str) -> PathBuf {
+    write(dir, "m.mtl", mtl);
+    write(dir, "m.obj", format!("mtllib m.mtl\nusemtl a\n{TETRA_OBJ}"))
+}
+
+#[test]
+fn mtl_colours_with_one_or_two_values_follow_the_specification() {
+    let dir = tempfile::tempdir().unwrap();
+    for (line, expected) in [
+        ("Kd 0.8", [0.8, 0.8, 0.8]),
+        ("Kd 0.8 0.4", [0.8, 0.4, 0.8]),
+        ("Kd 0.8 0.4 0.2", [0.8, 0.4, 0.2]),
+    ] {
+        let obj = obj_with(dir.path(), &format!("newmtl a\n{line}\nKs 0.5\n"));
+        let model = load_mesh_file(&obj).unwrap_or_else(|e| panic!("{line}: {e}"));
+        let m = model.parts[0].material.as_ref().unwrap();
+        assert_eq!(
+            m.texture,
+            Texture::Solid(glint::math::Color::from_array(expected)),
+            "{line}"
+        );
+        assert_eq!(m.specular, 0.5);
+    }
+}
+
+#[test]
+fn non_finite_or_negative_file_colours_are_errors_naming_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    for line in [
+        "Kd nan 0 0",
+        "Kd 1e39 1 1",
+        "Ks nan 0.5 0.5",
+        "Kd -1 0 0",
+        "Kd inf",
+        "Ns nan",
+        "Ni -2",
+        "d 7",
+    ] {
+        let obj = obj_with(dir.path(), &format!("newmtl a\n{line}\n"));
+        let e = load_error(&obj);
+        assert!(e.contains("m.mtl: line 2:"), "{line}: {e}");
+    }
+    // The same rules for glTF factors.
+    for factor in [
+        r#""baseColorFactor": [1e39, 1, 1, 1]"#,
+        r#""baseColorFactor": [-1, 1, 1, 1]"#,
+        r#""roughnessFactor": 3"#,
+    ] {
+        let path = write(
+            dir.path(),
+            "c.gltf",
+            gltf(&Gltf {
+                material: format!(r#"{{"pbrMetallicRoughness": {{{factor}}}}}"#),
+                ..Gltf::default()
+            }),
+        );
+        let e = load_error(&path);
+        assert!(e.contains("c.gltf: material 0:"), "{factor}: {e}");
+    }
+    // Vertices.
+    let path = write(
+        dir.path(),
+        "v.obj",
+        TETRA_OBJ.replace("v 1 0 0", "v 1 nan 0"),
+    );
+    assert!(load_error(&path).contains("v.obj: line 2:"));
+    let path = write(
+        dir.path(),
+        "w.obj",
+        TETRA_OBJ.replace("v 1 0 0", "v 1 1e39 0"),
+    );
+    assert!(load_error(&path).contains("w.obj: line 2:"));
+}
+
+#[test]
+fn a_missing_material_library_is_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = write(
+        dir.path(),
+        "m.obj",
+        format!("mtllib gone.mtl\nusemtl a\n{TETRA_OBJ}"),
+    );
+    let model = load_mesh_file(&obj).unwrap();
+    assert!(model.parts[0].material.is_none());
+    assert_eq!(model.warnings.len(), 1);
+    assert!(
+        model.warnings[0].contains("m.obj: material library `gone.mtl` not found")
+            && model.warnings[0].contains("gone.mtl`"),
+        "{:?}",
+        model.warnings
+    );
+}
+
+#[test]
+fn model_references_outside_the_folder_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "secret.mtl", "newmtl a\nKd 1 0 0\n");
+    write(dir.path(), "secret.bin", [0u8; 96]);
+    let model = dir.path().join("model");
+    for lib in ["../secret.mtl", "/etc/passwd", "file:///etc/passwd"] {
+        let obj = write(
+            &model,
+            "m.obj",
+            format!("mtllib {lib}\nusemtl a\n{TETRA_OBJ}"),
+        );
+        let e = load_error(&obj);
+        assert!(
+            e.contains(&format!("`{lib}`")) && e.contains("own folder"),
+            "{lib}: {e}"
+        );
+    }
+    for uri in [
+        "../secret.bin",
+        "../../../../../../etc/passwd",
+        "/etc/passwd",
+        "file:///etc/passwd",
+        "/dev/zero",
+        "sub/../../secret.bin",
+        "%2E%2E/secret.bin",
+    ] {
+        let path = write(
+            &model,
+            "t.gltf",
+            gltf(&Gltf {
+                buffer_uri: Some(uri.into()),
+                ..Gltf::default()
+            }),
+        );
+        let e = load_error(&path);
+        assert!(
+            e.contains("t.gltf: buffer 0:") && e.contains(&format!("`{uri}`")),
+            "{uri}: {e}"
+        );
+    }
+    let path = write(
+        &model,
+        "i.gltf",
+        gltf(&Gltf {
+            images: r#""images": [{"uri": "../secret.png"}],"#.into(),
+            ..Gltf::default()
+        }),
+    );
+    let e = load_error(&path);
+    assert!(e.contains("i.gltf: image 0: URI `../secret.png`"), "{e}");
+    #[cfg(unix)]
+    {
+        // A link inside the folder that leads out.
+        std::os::unix::fs::symlink(dir.path().join("secret.bin"), model.join("link.bin")).unwrap();
+        let path = write(
+            &model,
+            "l.gltf",
+            gltf(&Gltf {
+                buffer_uri: Some("link.bin".into()),
+                ..Gltf::default()
+            }),
+        );
+        assert!(load_error(&path).contains("outside the model's folder"));
+    }
+    // Inside the folder, the same file loads.
+    write(&model, "data/tetra.bin", buffer());
+    let path = write(
+        &model,
+        "ok.gltf",
+        gltf(&Gltf {
+            buffer_uri: Some("data/tetra.bin".into()),
+            ..Gltf::default()
+        }),
+    );
+    load_mesh_file(&path).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn special_files_are_refused_not_read() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["zero.ply", "zero.obj", "zero.gltf", "zero.glb", "zero.toml"] {
+        let link = dir.path().join(name);
+        std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+        let e = if name.ends_with(".toml") {
+            load_scene_file(&link).unwrap_err().to_string()
+        } else {
+            load_error(&link)
+        };
+        assert!(
+            e.contains(name) && e.contains("character device, not a regular file"),
+            "{e}"
+        );
+    }
+    let fifo = dir.path().join("pipe.ply");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if made.is_ok_and(|s| s.success()) {
+        // Opening a FIFO for reading would block until a writer comes.
+        assert!(load_error(&fifo).contains("a FIFO, not a regular file"));
+    }
+    let e = load_error(&dir.path().join("missing.ply"));
+    assert!(e.contains("missing.ply: file: not found"), "{e}");
+}
+
+#[test]
+fn gltf_node_cycles_and_shared_children_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    for (nodes, roots, culprit) in [
+        (r#"[{"mesh": 0, "children": [0]}]"#, "[0]", "node 0"),
+        (
+            r#"[{"mesh": 0, "children": [1]}, {"children": [2]}, {"children": [1]}]"#,
+            "[0]",
+            "node 1",
+        ),
+        (
+            r#"[{"mesh": 0, "children": [2]}, {"children": [2]}, {"mesh": 0}]"#,
+            "[0, 1]",
+            "node 2",
+        ),
+    ] {
+        let path = write(
+            dir.path(),
+            "cycle.gltf",
+            gltf(&Gltf {
+                nodes: nodes.into(),
+                roots: roots.into(),
+                ..Gltf::default()
+            }),
+        );
+        let e = load_error(&path);
+        assert!(
+            e.contains(&format!("cycle.gltf: {culprit}: is reached a second time")),
+            "{nodes}: {e}"
+        );
+    }
+}
+
+#[test]
+fn glb_lengths_are_checked_before_anything_is_allocated() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut header = b"glTF".to_vec();
+    header.extend(2u32.to_le_bytes());
+    header.extend(4u32.to_le_bytes());
+    let e = load_error(&write(dir.path(), "short.glb", &header));
+    assert!(
+        e.contains(
+            "short.glb: GLB header: the header gives a length of 4 bytes, but the file has 12"
+        ),
+        "{e}"
+    );
+    // A chunk claiming 4 GiB.
+    let mut glb = b"glTF".to_vec();
+    glb.extend(2u32.to_le_bytes());
+    glb.extend(20u32.to_le_bytes());
+    glb.extend(u32::MAX.to_le_bytes());
+    glb.extend(b"JSON");
+    let e = load_error(&write(dir.path(), "huge.glb", &glb));
+    assert!(e.contains("huge.glb: GLB header: chunk at byte 12"), "{e}");
+    let e = load_error(&write(dir.path(), "tiny.glb", b"glTF"));
+    assert!(e.contains("less than the 12 of a GLB header"), "{e}");
+    // An accessor that claims more than its buffer holds.
+    let path = write(
+        dir.path(),
+        "acc.gltf",
+        gltf(&Gltf {
+            position_count: 4_000_000_000,
+            ..Gltf::default()
+        }),
+    );
+    let e = load_error(&path);
+    assert!(
+        e.contains("acc.gltf: mesh 0 primitive 0: its positions (accessor 0)"),
+        "{e}"
+    );
+}
+
+#[test]
+fn ply_elements_without_properties_do_not_loop() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = "ply\nformat ascii 1.0\nelement nothing 1000000000000000000\n\
+               element vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+               element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+               0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    let model = load_mesh_file(&write(dir.path(), "p.ply", ply)).unwrap();
+    assert_eq!(model.triangles(), 1);
+}
+
+#[test]
+fn formulas_nested_ten_thousand_deep_are_located_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let deep = format!("{}x{}", "(".repeat(10_000), ")".repeat(10_000));
+    let scene = format!(
+        "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, 0]\n\n[[object]]\nshape = \"implicit\"\nf = \"{deep}\"\nbounds = [[-1, -1, -1], [1, 1, 1]]\n"
+    );
+    let e = load_scene_file(&write(dir.path(), "deep.toml", scene))
+        .unwrap_err()
+        .to_string();
+    // Line 7, at the 101st `(` (after `f = "`).
+    assert!(
+        e.contains("deep.toml:7:107: in formula:") && e.contains("100 levels deep"),
+        "{e}"
+    );
+}
+
+#[test]
+fn scene_new_reports_a_bad_material_index() {
+    use glint::scene::{Camera, Object, Scene};
+    let camera = Camera::try_new(
+        glint::math::Vec3::Z,
+        glint::math::Vec3::ZERO,
+        glint::math::Vec3::Y,
+        40.0,
+    )
+    .unwrap();
+    let object = Object {
+        shape: glint::geometry::Shape::Sphere(glint::geometry::Sphere::new(
+            glint::math::Vec3::ZERO,
+            1.0,
+        )),
+        material: 3,
+    };
+    let e = Scene::new(
+        camera,
+        vec![object],
+        vec![glint::scene::Material::default_diffuse()],
+        Vec::new(),
+        glint::math::Color::ZERO,
+        glint::math::Color::ZERO,
+    )
+    .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "object 0 has material 3, but there are only 1 materials"
+    );
+}
+
+/// The parts of a one-mesh glTF that tests vary.
+struct Gltf {
+    buffer_uri: Option<String>,
+    nodes: String,
+    roots: String,
+    material: String,
+    images: String,
+    position_count: u64,
+}
+
+impl Default for Gltf {
+    fn default() -> Self {
+        Gltf {
+            buffer_uri: None,
+            nodes: r#"[{"mesh": 0}]"#.into(),
+            roots: "[0]".into(),
+            material: r#"{"pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1]}}"#.into(),
+            images: String::new(),
+            position_count: 4,
+        }
+    }
+}
+
+/// A tetrahedron: 4 float vertices, then 12 u32 indices.
+fn buffer() -> Vec<u8> {
+    let v: [[f32; 3]; 4] = [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let f: [u32; 12] = [0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3];
+    let mut b: Vec<u8> = v.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
+    b.extend(f.iter().flat_map(|i| i.to_le_bytes()));
+    b
+}
+
+fn gltf(g: &Gltf) -> String {
+    use base64::Engine;
+    let uri = g.buffer_uri.clone().unwrap_or_else(|| {
+        format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(buffer())
+        )
+    });
+    format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "scene": 0,
+  "scenes": [{{"nodes": {roots}}}],
+  "nodes": {nodes},
+  "materials": [{material}],
+  {images}
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1, "material": 0}}]}}],
+  "buffers": [{{"uri": "{uri}", "byteLength": 96}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 48}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": {count}, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 1]}},
+    {{"bufferView": 1, "componentType": 5125, "count": 12, "type": "SCALAR"}}
+  ]
+}}"#,
+        roots = g.roots,
+        nodes = g.nodes,
+        material = g.material,
+        images = g.images,
+        count = g.position_count,
+    )
+}
