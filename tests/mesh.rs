@@ -529,3 +529,56 @@ fn meshes_far_from_unit_size_render_the_same_image() {
         }
     }
 }
+
+/// 40 cubes of side 0.2 in one mesh, along x, 0.5 apart, and a ray down
+/// their row: 80 crossings (once, only 32 were kept, in BVH order), an
+/// inside length of exactly 40·0.2, and from the centre of the first cube
+/// (a segment that starts inside) 0.1 + 39·0.2.
+#[test]
+fn crossings_of_many_surfaces_and_from_inside() {
+    let mut v: Vec<V3> = Vec::new();
+    let mut f: Vec<[u32; 3]> = Vec::new();
+    for k in 0..40 {
+        let c = V3::new(0.5 * k as f32, 0.0, 0.0);
+        let base = v.len() as u32;
+        for i in 0..8 {
+            let corner = V3::new(
+                if i & 1 == 0 { -0.1 } else { 0.1 },
+                if i & 2 == 0 { -0.1 } else { 0.1 },
+                if i & 4 == 0 { -0.1 } else { 0.1 },
+            );
+            v.push(c + corner);
+        }
+        for q in [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ] {
+            f.push([base + q[0], base + q[1], base + q[2]]);
+            f.push([base + q[0], base + q[2], base + q[3]]);
+        }
+    }
+    let instance = MeshInstance::new(Arc::new(mesh((v, f))), None);
+    let mut counters = TraceCounters::default();
+    let mut crossings = 0;
+    let ray = Ray::new(Vec3::new(-1.0, 0.013, 0.021), Vec3::X);
+    let inside = instance.crossings(&ray, &mut counters, &mut |cos| {
+        assert!((cos - 1.0).abs() < 1e-6);
+        crossings += 1;
+    });
+    assert_eq!(crossings, 80);
+    assert!((inside - 8.0).abs() < 1e-4, "{inside}");
+    // From inside the first cube, to a point inside the 21st (x = 10.05).
+    let ray = Ray {
+        t_max: 10.05,
+        ..Ray::new(Vec3::new(0.0, 0.013, 0.021), Vec3::X)
+    };
+    let mut crossings = 0;
+    let inside = instance.crossings(&ray, &mut counters, &mut |_| crossings += 1);
+    assert_eq!(crossings, 1 + 2 * 19 + 1);
+    let expected = 0.1 + 19.0 * 0.2 + 0.15;
+    assert!((inside - expected).abs() < 1e-4, "{inside} vs {expected}");
+}

@@ -436,8 +436,14 @@ impl MeshInstance {
         self.mesh.uv_object(p, prim)
     }
 
-    /// See [`super::Shape::crossings`]. The length inside assumes the segment
-    /// starts outside the mesh (true of shadow rays from other surfaces).
+    /// See [`super::Shape::crossings`]. The mesh is taken to be closed: the
+    /// crossings are found along the whole ray `[t_min, ∞)`, so that their
+    /// parity says whether the segment starts inside (a light inside a glass
+    /// mesh, say), and the segment's inside length is summed over the
+    /// crossings in `t` order, however many there are. `crossing` is called
+    /// for those on the segment only. (A ray exactly through an edge, which
+    /// both triangles report, counts twice; such rays are rare enough to
+    /// leave to one sample's absorption.)
     #[inline(never)]
     pub fn crossings(
         &self,
@@ -445,20 +451,53 @@ impl MeshInstance {
         counters: &mut TraceCounters,
         crossing: &mut impl FnMut(f32),
     ) -> f32 {
-        let r = self.object_ray(ray);
-        let mut ts = [0f32; 32];
+        let whole = Ray {
+            t_max: f32::INFINITY,
+            ..self.object_ray(ray)
+        };
+        // Kept on the stack up to `LOCAL` crossings, on the heap beyond.
+        const LOCAL: usize = 64;
+        let mut local = [0f32; LOCAL];
+        let mut spill: Vec<f32> = Vec::new();
         let mut n = 0;
-        self.mesh.all_hits(&r, counters, |t, cos, _| {
-            crossing(cos);
-            if n < ts.len() {
-                ts[n] = t;
-                n += 1;
+        self.mesh.all_hits(&whole, counters, |t, cos, _| {
+            if t < ray.t_max {
+                crossing(cos);
             }
+            if n < LOCAL {
+                local[n] = t;
+            } else {
+                if spill.is_empty() {
+                    spill.extend_from_slice(&local);
+                }
+                spill.push(t);
+            }
+            n += 1;
         });
-        let ts = &mut ts[..n];
+        let ts = if n <= LOCAL {
+            &mut local[..n]
+        } else {
+            &mut spill[..]
+        };
         ts.sort_unstable_by(f32::total_cmp);
-        let inside: f32 = ts.chunks_exact(2).map(|p| p[1] - p[0]).sum();
-        inside * ray.d.length()
+        // Inside at t_min iff an odd number of crossings lie beyond it.
+        let mut inside = ts.len() % 2 == 1;
+        let mut from = ray.t_min;
+        let mut length = 0.0;
+        for &t in ts.iter() {
+            let t = t.min(ray.t_max);
+            if inside {
+                length += t - from;
+            }
+            if t >= ray.t_max {
+                break;
+            }
+            from = t;
+            inside = !inside;
+        }
+        // Past the last crossing the parity is even: the walk ends outside,
+        // so the length is finite even for t_max = ∞.
+        length * ray.d.length()
     }
 
     /// Whether the world-space point `p` lies inside the (closed) mesh.

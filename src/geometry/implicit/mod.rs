@@ -39,6 +39,12 @@ pub fn torus_formula(major: f64, minor: f64) -> String {
 pub const HEART_FORMULA: &str = "(x^2 + 9/4*y^2 + z^2 - 1)^3 - x^2*z^3 - 9/80*y^2*z^3";
 pub const HEART_BOUNDS: [[f32; 3]; 2] = [[-1.2, -0.75, -1.05], [1.2, 0.75, 1.3]];
 
+/// The most roots of an implicit surface that a shadow ray through it
+/// (a transparent one) looks for; see [`Implicit::crossings`]. Formulas such
+/// as `sin(100·x)` can cross a ray thousands of times, and every root costs
+/// a search; 256 crossings attenuate light by far more than any image shows.
+pub const MAX_SHADOW_CROSSINGS: usize = 256;
+
 /// Why an implicit surface could not be built.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ImplicitError {
@@ -245,8 +251,13 @@ impl Implicit {
         }
     }
 
-    /// Calls `crossing` with `|cos θ|` at every root on the ray's segment and
-    /// returns the length of the segment inside (`f < 0`).
+    /// Calls `crossing` with `|cos θ|` at every root on the ray's segment, in
+    /// `t` order, and returns the length of the segment inside (`f < 0`,
+    /// judged between consecutive roots by the sign of `f` midway, so a
+    /// segment that starts inside is measured right). At most
+    /// [`MAX_SHADOW_CROSSINGS`] roots are searched for (each search costs an
+    /// interval subdivision); past them the rest of the segment counts as
+    /// one gap, and no more Fresnel factors are applied.
     // Out of line: keeps the dispatch of the cheap shapes small in the hot loop.
     #[inline(never)]
     pub fn crossings(
@@ -272,7 +283,7 @@ impl Implicit {
                 inside += b - a;
             }
         };
-        while count < 64
+        while count < MAX_SHADOW_CROSSINGS
             && let Some(r) = s.first_root(start, t1, &mut counters.implicit_evaluations)
         {
             let n = self.transform.normal_to_world * self.gradient(s.o + s.d * r.t);
