@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use glint::render::{self, ImageFormat, RenderStats};
+use glint::render::{self, ImageFormat, RenderStats, StagedFile};
 use glint::scene::{self, GeometryStats, SceneFile};
 use glint::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -144,15 +144,23 @@ fn run_render(args: RenderArgs) -> Result<()> {
         );
     }
 
-    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty())
-        && !dir.is_dir()
-    {
-        bail!(
-            "cannot write `{}`: folder `{}` does not exist",
-            output.display(),
-            dir.display()
-        );
-    }
+    // Every output is created (as a temporary file beside it) before any
+    // work, so that a path that cannot be written fails at once; all of them
+    // are renamed into place together at the end, or none is.
+    let stage = |path: &Path| -> Result<StagedFile> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
+            && !dir.is_dir()
+        {
+            bail!(
+                "cannot write `{}`: folder `{}` does not exist",
+                path.display(),
+                dir.display()
+            );
+        }
+        Ok(StagedFile::create(path)?)
+    };
+    let mut image_file = stage(&output)?;
+    let mut stats_file = args.stats_json.as_deref().map(stage).transpose()?;
 
     let load_start = Instant::now();
     let (
@@ -235,11 +243,16 @@ fn run_render(args: RenderArgs) -> Result<()> {
     bar.finish_and_clear();
     stats.seconds_load = seconds_load;
 
-    render::write_image(&output, &image)?;
+    image_file.write_image(&image)?;
+    drop(image);
     let report = Report::new(stats, scene.geometry_stats(), seconds_build);
-    if let Some(path) = &args.stats_json {
-        write_stats_json(path, &report)?;
+    let mut outputs = vec![image_file];
+    if let Some(mut file) = stats_file.take() {
+        let json = serde_json::to_string_pretty(&report).context("serialising statistics")?;
+        file.write_bytes((json + "\n").as_bytes())?;
+        outputs.push(file);
     }
+    render::commit_all(outputs)?;
     if !args.quiet {
         eprintln!("{}", summary(&scene_name, &report));
         eprintln!("wrote {}", output.display());
@@ -315,9 +328,9 @@ fn run_info(path: &Path) -> Result<()> {
     let per = |b: usize| b as f64 / triangles.max(1) as f64;
     println!("{}", path.display());
     println!(
-        "  parts        {} ({} distinct meshes)",
+        "  parts        {} ({})",
         model.parts.len(),
-        seen.len()
+        count(seen.len() as u64, "distinct mesh", "distinct meshes")
     );
     println!("  vertices     {}", group(vertices as u64));
     println!("  triangles    {}", group(triangles as u64));
@@ -357,24 +370,6 @@ fn run_info(path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// The statistics as JSON, written atomically like the image.
-fn write_stats_json(path: &Path, stats: &Report) -> Result<()> {
-    let json = serde_json::to_string_pretty(stats).context("serialising statistics")?;
-    let tmp = path.with_file_name(format!(
-        ".{}.{}.tmp",
-        path.file_name()
-            .map(|n| n.to_string_lossy())
-            .unwrap_or_default(),
-        std::process::id()
-    ));
-    std::fs::write(&tmp, json + "\n")
-        .and_then(|_| std::fs::rename(&tmp, path))
-        .inspect_err(|_| {
-            let _ = std::fs::remove_file(&tmp);
-        })
-        .with_context(|| format!("cannot write statistics to `{}`", path.display()))
-}
-
 fn summary(scene_name: &str, report: &Report) -> String {
     let s = &report.render;
     let g = &report.geometry;
@@ -399,10 +394,10 @@ fn summary(scene_name: &str, report: &Report) -> String {
     };
     let meshes = if g.instances > 0 {
         format!(
-            " {} triangles in {} meshes, {} instances ({} instanced); BVH {} nodes, {:.1} bytes per triangle, built in {:.3} s; {:.1} BVH nodes and {:.1} triangle tests per ray.",
-            group(g.triangles),
-            g.meshes,
-            g.instances,
+            " {} in {}, {} ({} instanced); BVH {} nodes, {:.1} bytes per triangle, built in {:.3} s; {:.1} BVH nodes and {:.1} triangle tests per ray.",
+            count(g.triangles, "triangle", "triangles"),
+            count(g.meshes, "mesh", "meshes"),
+            count(g.instances, "instance", "instances"),
             group(g.triangles_instanced),
             group(g.bvh_nodes),
             report.bvh_bytes_per_triangle,
@@ -413,16 +408,25 @@ fn summary(scene_name: &str, report: &Report) -> String {
     } else {
         String::new()
     };
+    let cut = if s.ray_trees_cut > 0 {
+        format!(
+            " {} camera samples reached the limit of {} secondary rays per sample, and their deepest rays were not traced (raise min_weight or lower max_depth).",
+            group(s.ray_trees_cut),
+            render::MAX_RAY_TREE
+        )
+    } else {
+        String::new()
+    };
     format!(
-        "Rendered {scene_name} at {}×{}, {} spp, {} integrator (max depth {}), {} threads. \
+        "Rendered {scene_name} at {}×{}, {} spp, {} integrator (max depth {}), {}. \
          Load {:.1} ms, render {:.1} ms. Rays: {} camera, {} shadow, {} reflection, {} refraction \
-         ({} in all, {:.1} M rays/s). {} intersection tests{implicit}.{nan}{meshes}",
+         ({} in all, {:.1} M rays/s). {} intersection tests{implicit}.{nan}{cut}{meshes}",
         s.width,
         s.height,
         s.spp,
         s.integrator,
         s.max_depth,
-        s.threads,
+        count(s.threads as u64, "thread", "threads"),
         s.seconds_load * 1e3,
         s.seconds_render * 1e3,
         group(s.rays.camera),
@@ -433,6 +437,12 @@ fn summary(scene_name: &str, report: &Report) -> String {
         s.rays_per_second / 1e6,
         group(s.intersection_tests),
     )
+}
+
+/// `n` and the noun in the right number: `1 thread`, `2 threads`,
+/// `1,024 meshes`.
+fn count(n: u64, one: &str, many: &str) -> String {
+    format!("{} {}", group(n), if n == 1 { one } else { many })
 }
 
 /// `1234567` → `1,234,567`.

@@ -253,3 +253,107 @@ fn info_and_rendering_a_mesh_file() {
         stderr(&out)
     );
 }
+
+/// Output paths are checked before any work, and the outputs appear all
+/// together or not at all.
+#[test]
+fn unwritable_outputs_fail_before_rendering_and_leave_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let small = ["render", "--width", "32", "--height", "24"];
+    let out = glint(dir.path(), &[&small[..], &["-o", "/proc/x.png"]].concat());
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(err.contains("cannot write `/proc/x.png`"), "{err}");
+    assert!(!err.contains("Rendered"), "it rendered first: {err}");
+
+    let out = glint(
+        dir.path(),
+        &[
+            &small[..],
+            &["-o", "ok.png", "--stats-json", "/proc/x.json"],
+        ]
+        .concat(),
+    );
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(err.contains("cannot write `/proc/x.json`"), "{err}");
+    assert!(!err.contains("Rendered"), "{err}");
+    // Neither the image nor any temporary file.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+
+    std::fs::create_dir(dir.path().join("folder.png")).unwrap();
+    let out = glint(dir.path(), &[&small[..], &["-o", "folder.png"]].concat());
+    assert!(stderr(&out).contains("it is a folder"), "{}", stderr(&out));
+
+    let out = glint(
+        dir.path(),
+        &[&small[..], &["-o", "a.exr", "--stats-json", "a.json"]].concat(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let mut names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["a.exr", "a.json", "folder.png"]);
+}
+
+/// Whitted with every glass hit split in two down to depth 1024: the ray
+/// tree of each sample is bounded, and the summary says it was cut.
+#[test]
+fn runaway_ray_trees_are_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = glint(
+        dir.path(),
+        &[
+            "render",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--max-depth",
+            "1024",
+            "--min-weight",
+            "0",
+            "--stats-json",
+            "s.json",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("s.json")).unwrap()).unwrap();
+    let camera = stats["rays"]["camera"].as_u64().unwrap();
+    let secondary = stats["rays"]["reflection"].as_u64().unwrap()
+        + stats["rays"]["refraction"].as_u64().unwrap();
+    assert!(secondary <= camera * glint::render::MAX_RAY_TREE as u64);
+    assert!(stats["ray_trees_cut"].as_u64().unwrap() > 0);
+    assert!(
+        stderr(&out).contains("secondary rays per sample"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+/// A film larger than the memory the process may use is refused with a
+/// message, not an abort (here under a 2 GB address-space limit).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_film_too_large_for_memory_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 2000000 && exec '{}' render --width 32768 --height 4096 -o big.png",
+            env!("CARGO_BIN_EXE_glint")
+        ))
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("a 32768×4096 image needs 2.15 GB for its pixels"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}

@@ -22,6 +22,24 @@ impl Image {
         }
     }
 
+    /// [`Image::new`], or `None` if its pixels cannot be allocated.
+    pub fn try_new(width: u32, height: u32) -> Option<Self> {
+        let n = width as usize * height as usize;
+        let mut pixels = Vec::new();
+        pixels.try_reserve_exact(n).ok()?;
+        pixels.resize(n, Color::ZERO);
+        Some(Image {
+            width,
+            height,
+            pixels,
+        })
+    }
+
+    /// Bytes of the pixels of a `width × height` image.
+    pub fn bytes_for(width: u32, height: u32) -> u64 {
+        width as u64 * height as u64 * std::mem::size_of::<Color>() as u64
+    }
+
     pub fn get(&self, x: u32, y: u32) -> Color {
         self.pixels[(y * self.width + x) as usize]
     }
@@ -75,52 +93,163 @@ pub enum ImageWriteError {
     Write { path: PathBuf, message: String },
 }
 
+/// A file being written, all or nothing: its data go to a hidden temporary
+/// file beside `path`, created at once (so a folder that cannot be written
+/// is found before any work is done), and [`StagedFile::commit`] renames it
+/// over `path`. Dropped uncommitted, it removes the temporary file.
+#[derive(Debug)]
+pub struct StagedFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    file: Option<std::fs::File>,
+}
+
+impl StagedFile {
+    /// Creates the temporary file for `path`. Fails if `path` is a folder or
+    /// its folder cannot be written.
+    pub fn create(path: &Path) -> Result<StagedFile, ImageWriteError> {
+        let error = |message: String| ImageWriteError::Write {
+            path: path.to_path_buf(),
+            message,
+        };
+        if path.is_dir() {
+            return Err(error("it is a folder".into()));
+        }
+        let name = path
+            .file_name()
+            .ok_or_else(|| error("it names no file".into()))?
+            .to_string_lossy();
+        let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+            .map_err(|e| error(e.to_string()))?;
+        Ok(StagedFile {
+            path: path.to_path_buf(),
+            tmp,
+            file: Some(file),
+        })
+    }
+
+    /// The final path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn error(&self, message: impl std::fmt::Display) -> ImageWriteError {
+        ImageWriteError::Write {
+            path: self.path.clone(),
+            message: message.to_string(),
+        }
+    }
+
+    /// Writes `bytes` as the file's whole content.
+    pub fn write_bytes(&mut self, bytes: &[u8]) -> Result<(), ImageWriteError> {
+        use std::io::Write;
+        let file = self.file.as_mut().expect("open until commit");
+        file.write_all(bytes).map_err(|e| self.error(e))
+    }
+
+    /// Writes `image` in the format of the final path's extension.
+    pub fn write_image(&mut self, image: &Image) -> Result<(), ImageWriteError> {
+        let format = ImageFormat::from_path(&self.path).ok_or_else(|| {
+            ImageWriteError::UnsupportedFormat {
+                path: self.path.clone(),
+            }
+        })?;
+        let file = self.file.as_mut().expect("open until commit");
+        let written = match format {
+            ImageFormat::Png => write_png(std::io::BufWriter::new(file), image),
+            ImageFormat::Exr => write_exr(std::io::BufWriter::new(file), image),
+        };
+        written.map_err(|e| self.error(e))
+    }
+
+    /// Flushes the data to disk and renames the temporary file over the
+    /// final path.
+    pub fn commit(mut self) -> Result<(), ImageWriteError> {
+        let file = self.file.take().expect("open until commit");
+        file.sync_all().map_err(|e| self.error(e))?;
+        drop(file);
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| self.error(e))
+    }
+}
+
+impl Drop for StagedFile {
+    fn drop(&mut self) {
+        if self.file.is_some() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Commits several staged files together: if one rename fails, the files
+/// already renamed into place are removed again, so that either all appear
+/// or (as far as the file system allows) none does.
+pub fn commit_all(files: Vec<StagedFile>) -> Result<(), ImageWriteError> {
+    let mut done: Vec<PathBuf> = Vec::new();
+    for f in files {
+        let path = f.path.clone();
+        if let Err(e) = f.commit() {
+            for p in done {
+                let _ = std::fs::remove_file(p);
+            }
+            return Err(e);
+        }
+        done.push(path);
+    }
+    Ok(())
+}
+
+/// 8-bit sRGB PNG, encoded row by row (no second copy of the image).
+fn write_png(out: impl std::io::Write, image: &Image) -> Result<(), String> {
+    let mut encoder = png::Encoder::new(out, image.width, image.height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+    let mut stream = writer.stream_writer().map_err(|e| e.to_string())?;
+    let mut row = Vec::with_capacity(image.width as usize * 3);
+    for y in 0..image.height as usize {
+        let w = image.width as usize;
+        row.clear();
+        row.extend(
+            image.pixels[y * w..(y + 1) * w]
+                .iter()
+                .flat_map(|c| c.to_array())
+                .map(|v| (srgb_encode(v) * 255.0 + 0.5) as u8),
+        );
+        std::io::Write::write_all(&mut stream, &row).map_err(|e| e.to_string())?;
+    }
+    stream.finish().map_err(|e| e.to_string())?;
+    writer.finish().map_err(|e| e.to_string())
+}
+
+/// 32-bit float linear RGB OpenEXR.
+fn write_exr(out: impl std::io::Write + std::io::Seek, image: &Image) -> Result<(), String> {
+    use exr::prelude::*;
+    let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+        let c = image.get(p.x() as u32, p.y() as u32);
+        (c.x, c.y, c.z)
+    });
+    Image::from_channels((image.width as usize, image.height as usize), channels)
+        .write()
+        .to_buffered(out)
+        .map_err(|e| e.to_string())
+}
+
 /// Writes `image` to `path` (PNG or EXR by extension), atomically: the data go
 /// to a temporary file beside it, which is renamed over `path` only once it is
 /// complete.
 pub fn write_image(path: &Path, image: &Image) -> Result<(), ImageWriteError> {
-    let format =
-        ImageFormat::from_path(path).ok_or_else(|| ImageWriteError::UnsupportedFormat {
+    if ImageFormat::from_path(path).is_none() {
+        return Err(ImageWriteError::UnsupportedFormat {
             path: path.to_path_buf(),
-        })?;
-    let file_name = path
-        .file_name()
-        .map(|n| n.to_string_lossy())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{file_name}.{}.tmp", std::process::id()));
-    let error = |message: String| ImageWriteError::Write {
-        path: path.to_path_buf(),
-        message,
-    };
-    let written = match format {
-        ImageFormat::Png => image::save_buffer_with_format(
-            &tmp,
-            &image.to_srgb8(),
-            image.width,
-            image.height,
-            image::ExtendedColorType::Rgb8,
-            image::ImageFormat::Png,
-        )
-        .map_err(|e| e.to_string()),
-        ImageFormat::Exr => exr::prelude::write_rgb_file(
-            &tmp,
-            image.width as usize,
-            image.height as usize,
-            |x, y| {
-                let c = image.get(x as u32, y as u32);
-                (c.x, c.y, c.z)
-            },
-        )
-        .map_err(|e| e.to_string()),
-    };
-    if let Err(message) = written {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(error(message));
+        });
     }
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        error(e.to_string())
-    })
+    let mut file = StagedFile::create(path)?;
+    file.write_image(image)?;
+    file.commit()
 }
 
 #[cfg(test)]

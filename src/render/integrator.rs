@@ -13,7 +13,18 @@ use crate::scene::{
 pub struct Counters {
     pub rays: RayCounts,
     pub trace: TraceCounters,
+    /// Camera samples whose ray tree reached [`MAX_RAY_TREE`] (Whitted).
+    pub ray_trees_cut: u64,
 }
+
+/// The most secondary rays (reflected and refracted) one camera sample may
+/// spawn in [`Whitted`]. Each glass hit splits a ray in two, so with a
+/// `min_weight` of 0 the tree behind one pixel grows as 2^max_depth; this
+/// bounds it. A full tree of the default depth 8 has 510 secondary rays, so
+/// the bound binds only where depth and weight are pushed far past the
+/// defaults; the rays it cuts are the last in depth-first order (reflection
+/// before refraction), and the render counts the samples it cut.
+pub const MAX_RAY_TREE: u32 = 1024;
 
 /// Computes the radiance arriving along a camera ray.
 pub trait Integrator: Sync {
@@ -45,7 +56,8 @@ impl Integrator for Raycast {
 /// (total internal reflection: `R = 1`). Recursion ends at diffuse surfaces
 /// (they spawn nothing), when a ray leaves the scene (it sees the background),
 /// when a ray's weight (the product of the factors on its way to the pixel,
-/// largest channel) would fall below `min_weight`, or at `max_depth` bounces.
+/// largest channel) would fall below `min_weight`, at `max_depth` bounces, or
+/// when the sample has spawned [`MAX_RAY_TREE`] secondary rays.
 /// Lights are points or directions and cannot be hit by rays.
 #[derive(Clone, Copy, Debug)]
 pub struct Whitted {
@@ -55,8 +67,32 @@ pub struct Whitted {
 
 impl Integrator for Whitted {
     fn radiance(&self, scene: &Scene, ray: &Ray, counters: &mut Counters) -> Color {
-        self.trace(scene, ray, 0, 1.0, counters)
+        let mut budget = Budget {
+            left: MAX_RAY_TREE,
+            cut: false,
+        };
+        let l = self.trace(scene, ray, 0, 1.0, &mut budget, counters);
+        counters.ray_trees_cut += budget.cut as u64;
+        l
     }
+}
+
+/// The secondary rays a camera sample may still spawn.
+struct Budget {
+    left: u32,
+    /// Whether a ray was refused for want of budget.
+    cut: bool,
+}
+
+/// Takes one ray from the sample's budget, if any is left.
+#[inline]
+fn spend(budget: &mut Budget) -> bool {
+    if budget.left == 0 {
+        budget.cut = true;
+        return false;
+    }
+    budget.left -= 1;
+    true
 }
 
 impl Whitted {
@@ -66,6 +102,7 @@ impl Whitted {
         ray: &Ray,
         depth: u32,
         weight: f32,
+        budget: &mut Budget,
         counters: &mut Counters,
     ) -> Color {
         let Some(hit) = scene.intersect(ray, &mut counters.trace) else {
@@ -85,28 +122,30 @@ impl Whitted {
                 MaterialKind::Diffuse => {}
                 MaterialKind::Mirror { reflectance } => {
                     let w = weight * reflectance.max_element();
-                    if w >= self.min_weight {
+                    if w >= self.min_weight && spend(budget) {
                         counters.rays.reflection += 1;
                         let r = Ray::spawn(si.p, si.p_err, si.n, reflect(d, n_facing));
-                        l += reflectance * self.trace(scene, &r, depth + 1, w, counters);
+                        l += reflectance * self.trace(scene, &r, depth + 1, w, budget, counters);
                     }
                 }
                 MaterialKind::Dielectric { ior, .. } => {
                     let (eta_i, eta_t) = if front { (1.0, ior) } else { (ior, 1.0) };
                     let f = fresnel_dielectric(wo.dot(n_facing), eta_i, eta_t);
                     let w = weight * f.reflectance;
-                    if w >= self.min_weight {
+                    if w >= self.min_weight && spend(budget) {
                         counters.rays.reflection += 1;
                         let r = Ray::spawn(si.p, si.p_err, si.n, reflect(d, n_facing));
-                        l += f.reflectance * self.trace(scene, &r, depth + 1, w, counters);
+                        l += f.reflectance * self.trace(scene, &r, depth + 1, w, budget, counters);
                     }
                     let w = weight * f.transmittance;
                     if w >= self.min_weight
                         && let Some(t) = refract(d, n_facing, eta_i / eta_t)
+                        && spend(budget)
                     {
                         counters.rays.refraction += 1;
                         let r = Ray::spawn(si.p, si.p_err, si.n, t);
-                        l += f.transmittance * self.trace(scene, &r, depth + 1, w, counters);
+                        l +=
+                            f.transmittance * self.trace(scene, &r, depth + 1, w, budget, counters);
                     }
                 }
             }

@@ -7,11 +7,14 @@
 
 mod film;
 mod integrator;
+pub mod memory;
 mod sampler;
 mod stats;
 
-pub use film::{Image, ImageFormat, ImageWriteError, srgb_encode, write_image};
-pub use integrator::{Counters, Integrator, Raycast, Whitted};
+pub use film::{
+    Image, ImageFormat, ImageWriteError, StagedFile, commit_all, srgb_encode, write_image,
+};
+pub use integrator::{Counters, Integrator, MAX_RAY_TREE, Raycast, Whitted};
 pub use sampler::{Pcg32, pixel_offset, strata};
 pub use stats::{RayCounts, RenderStats, TileCounters};
 
@@ -30,6 +33,17 @@ pub enum RenderError {
     Settings(String),
     #[error("cannot start {threads} render threads: {message}")]
     ThreadPool { threads: usize, message: String },
+    #[error(
+        "a {width}×{height} image needs {:.2} GB for its pixels (16 bytes each), but only {:.2} GB of memory is available; render a smaller image",
+        *needed as f64 / 1e9,
+        *available as f64 / 1e9
+    )]
+    Memory {
+        width: u32,
+        height: u32,
+        needed: u64,
+        available: u64,
+    },
 }
 
 /// Renders `scene` with `settings`. `progress` is called (from worker threads)
@@ -61,9 +75,24 @@ pub fn render_with<I: Integrator>(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Image, RenderStats), RenderError> {
     settings.validate().map_err(RenderError::Settings)?;
+    let (width, height) = (settings.width, settings.height);
+    let memory_error = |available| RenderError::Memory {
+        width,
+        height,
+        needed: Image::bytes_for(width, height),
+        available,
+    };
+    // Refused up front where the system says how much it has; allocated
+    // fallibly in any case.
+    if let Some(available) = memory::available_bytes()
+        && Image::bytes_for(width, height) > available
+    {
+        return Err(memory_error(available));
+    }
+    let image = Image::try_new(width, height).ok_or_else(|| memory_error(0))?;
     let start = Instant::now();
     let (image, counters, threads) = if settings.threads == 0 {
-        let (image, counters) = render_tiles(scene, settings, integrator, progress);
+        let (image, counters) = render_tiles(scene, settings, integrator, progress, image);
         (image, counters, rayon::current_num_threads())
     } else {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -74,7 +103,7 @@ pub fn render_with<I: Integrator>(
                 message: e.to_string(),
             })?;
         let (image, counters) =
-            pool.install(|| render_tiles(scene, settings, integrator, progress));
+            pool.install(|| render_tiles(scene, settings, integrator, progress, image));
         (image, counters, settings.threads)
     };
     let seconds_render = start.elapsed().as_secs_f64();
@@ -104,57 +133,64 @@ pub fn render_with<I: Integrator>(
             / rays_total.max(1) as f64,
         nan_pixels: counters.nan_pixels,
         bad_samples: counters.bad_samples,
+        ray_trees_cut: counters.ray_trees_cut,
     };
     Ok((image, stats))
 }
 
-#[derive(Clone, Copy)]
-struct Tile {
+/// A tile: its top-left pixel and, row by row, the slices of the image it
+/// covers (so tiles are rendered in parallel straight into the image).
+struct Tile<'a> {
     x0: u32,
     y0: u32,
-    width: u32,
-    height: u32,
+    rows: Vec<&'a mut [Color]>,
 }
 
+/// Renders every pixel of `image` (blank, `settings.width × settings.height`)
+/// in tiles of [`TILE_SIZE`]², in parallel.
 fn render_tiles<I: Integrator>(
     scene: &Scene,
     settings: &RenderSettings,
     integrator: &I,
     progress: &(dyn Fn(u64) + Sync),
+    mut image: Image,
 ) -> (Image, TileCounters) {
-    let (w, h) = (settings.width, settings.height);
-    let tiles: Vec<Tile> = (0..h.div_ceil(TILE_SIZE))
-        .flat_map(|ty| {
-            (0..w.div_ceil(TILE_SIZE)).map(move |tx| {
-                let (x0, y0) = (tx * TILE_SIZE, ty * TILE_SIZE);
-                Tile {
-                    x0,
-                    y0,
-                    width: TILE_SIZE.min(w - x0),
-                    height: TILE_SIZE.min(h - y0),
+    let w = settings.width as usize;
+    let band = TILE_SIZE as usize * w;
+    let total = image
+        .pixels
+        .par_chunks_mut(band)
+        .enumerate()
+        .map(|(ty, band)| {
+            // The band's rows, cut into the tiles' pieces.
+            let mut tiles: Vec<Tile> = (0..w.div_ceil(TILE_SIZE as usize))
+                .map(|tx| Tile {
+                    x0: tx as u32 * TILE_SIZE,
+                    y0: ty as u32 * TILE_SIZE,
+                    rows: Vec::with_capacity(TILE_SIZE as usize),
+                })
+                .collect();
+            for row in band.chunks_mut(w) {
+                for (tile, piece) in tiles.iter_mut().zip(row.chunks_mut(TILE_SIZE as usize)) {
+                    tile.rows.push(piece);
                 }
-            })
+            }
+            tiles
+                .into_par_iter()
+                .map(|mut tile| {
+                    let counters = render_tile(scene, settings, integrator, &mut tile);
+                    progress(tile.rows.iter().map(|r| r.len() as u64).sum());
+                    counters
+                })
+                .reduce(TileCounters::default, |mut a, b| {
+                    a += b;
+                    a
+                })
         })
-        .collect();
-    let rendered: Vec<(Vec<Color>, TileCounters)> = tiles
-        .par_iter()
-        .map(|tile| {
-            let out = render_tile(scene, settings, integrator, tile);
-            progress(tile.width as u64 * tile.height as u64);
-            out
-        })
-        .collect();
-
-    let mut image = Image::new(w, h);
-    let mut total = TileCounters::default();
-    for (tile, (pixels, counters)) in tiles.iter().zip(rendered) {
-        for row in 0..tile.height {
-            let src = &pixels[(row * tile.width) as usize..((row + 1) * tile.width) as usize];
-            let start = ((tile.y0 + row) * w + tile.x0) as usize;
-            image.pixels[start..start + tile.width as usize].copy_from_slice(src);
-        }
-        total += counters;
-    }
+        .reduce(TileCounters::default, |mut a, b| {
+            a += b;
+            a
+        });
     (image, total)
 }
 
@@ -162,14 +198,15 @@ fn render_tile<I: Integrator>(
     scene: &Scene,
     settings: &RenderSettings,
     integrator: &I,
-    tile: &Tile,
-) -> (Vec<Color>, TileCounters) {
-    let mut pixels = Vec::with_capacity((tile.width * tile.height) as usize);
+    tile: &mut Tile,
+) -> TileCounters {
     let mut counters = Counters::default();
     let (mut bad_samples, mut nan_pixels) = (0, 0);
     let spp = settings.spp.max(1);
-    for y in tile.y0..tile.y0 + tile.height {
-        for x in tile.x0..tile.x0 + tile.width {
+    for (dy, row) in tile.rows.iter_mut().enumerate() {
+        let y = tile.y0 + dy as u32;
+        for (dx, pixel) in row.iter_mut().enumerate() {
+            let x = tile.x0 + dx as u32;
             let mut rng = Pcg32::for_pixel(x, y);
             let mut sum = Color::ZERO;
             let mut bad = 0;
@@ -190,20 +227,20 @@ fn render_tile<I: Integrator>(
             }
             bad_samples += bad;
             nan_pixels += (bad > 0) as u64;
-            pixels.push(sum / spp as f32);
+            // A sum of huge finite samples can overflow: clamp, as every
+            // pixel must stay finite.
+            *pixel = (sum / spp as f32).min(Color::splat(f32::MAX));
         }
     }
-    (
-        pixels,
-        TileCounters {
-            rays: counters.rays,
-            intersection_tests: counters.trace.intersection_tests,
-            implicit_searches: counters.trace.implicit_searches,
-            implicit_evaluations: counters.trace.implicit_evaluations,
-            bvh_nodes_visited: counters.trace.bvh.nodes_visited,
-            triangle_tests: counters.trace.bvh.primitive_tests,
-            bad_samples,
-            nan_pixels,
-        },
-    )
+    TileCounters {
+        rays: counters.rays,
+        intersection_tests: counters.trace.intersection_tests,
+        implicit_searches: counters.trace.implicit_searches,
+        implicit_evaluations: counters.trace.implicit_evaluations,
+        bvh_nodes_visited: counters.trace.bvh.nodes_visited,
+        triangle_tests: counters.trace.bvh.primitive_tests,
+        bad_samples,
+        nan_pixels,
+        ray_trees_cut: counters.ray_trees_cut,
+    }
 }

@@ -30,6 +30,8 @@ pub struct TileCounters {
     pub bad_samples: u64,
     /// Pixels with at least one such sample.
     pub nan_pixels: u64,
+    /// Camera samples whose ray tree reached `MAX_RAY_TREE` secondary rays.
+    pub ray_trees_cut: u64,
 }
 
 impl std::ops::AddAssign for TileCounters {
@@ -45,6 +47,7 @@ impl std::ops::AddAssign for TileCounters {
         self.triangle_tests += o.triangle_tests;
         self.bad_samples += o.bad_samples;
         self.nan_pixels += o.nan_pixels;
+        self.ray_trees_cut += o.ray_trees_cut;
     }
 }
 
@@ -83,4 +86,7 @@ pub struct RenderStats {
     /// Pixels that had a NaN or infinite sample (each such sample counts as black).
     pub nan_pixels: u64,
     pub bad_samples: u64,
+    /// Camera samples whose ray tree was cut at `MAX_RAY_TREE` secondary
+    /// rays (Whitted with a large `max_depth` and a tiny `min_weight`).
+    pub ray_trees_cut: u64,
 }

@@ -472,8 +472,12 @@ fn read_document(ctx: &Ctx, doc: &DeTable, span: Range<usize>) -> Result<SceneFi
     Ok(SceneFile {
         scene,
         settings,
-        seconds_mesh_load: cache.models.values().map(|m| m.0.seconds_load).sum(),
-        seconds_mesh_build: cache.models.values().map(|m| m.0.seconds_build).sum(),
+        // Folded from +0 (an empty f64 `sum` is −0).
+        seconds_mesh_load: cache.models.values().fold(0.0, |a, m| a + m.0.seconds_load),
+        seconds_mesh_build: cache
+            .models
+            .values()
+            .fold(0.0, |a, m| a + m.0.seconds_build),
         warnings: cache
             .models
             .values()
