@@ -418,3 +418,55 @@ fn gltf(g: &Gltf) -> String {
         count = g.position_count,
     )
 }
+
+/// Found by fuzzing: gltf-json's validation indexed a POSITION accessor
+/// without checking it.
+#[test]
+fn a_position_accessor_out_of_range_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = gltf(&Gltf::default()).replace(r#""POSITION": 0"#, r#""POSITION": 255"#);
+    let e = load_error(&write(dir.path(), "p.gltf", text));
+    assert!(
+        e.contains("p.gltf: mesh 0 primitive 0: its POSITION is accessor 255"),
+        "{e}"
+    );
+}
+
+/// Found by fuzzing: a binary list whose length type is float could claim
+/// a length whose size in bytes overflows.
+#[test]
+fn a_ply_list_length_must_be_an_integer_type() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n\
+element face 1\nproperty list float int vertex_indices\nend_header\n"
+        .to_vec();
+    ply.extend([0u8; 12]);
+    ply.extend(1e30f32.to_le_bytes());
+    let e = load_error(&write(dir.path(), "f.ply", &ply));
+    assert!(
+        e.contains("f.ply: header line 8: a list's length must be an integer type"),
+        "{e}"
+    );
+    // An integer length past the end of the file.
+    let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n\
+element face 1\nproperty list uint int vertex_indices\nend_header\n"
+        .to_vec();
+    ply.extend([0u8; 12]);
+    ply.extend(u32::MAX.to_le_bytes());
+    let e = load_error(&write(dir.path(), "g.ply", &ply));
+    assert!(e.contains("g.ply: face 0: file ends inside it"), "{e}");
+}
+
+/// Found by fuzzing: a second, empty `vertex` element made records of zero
+/// bytes.
+#[test]
+fn a_second_vertex_element_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = "ply\nformat binary_little_endian 1.0\nelement vertex 0\nelement vertex 1\n\
+               property float x\nproperty float y\nproperty float z\nend_header\n";
+    let e = load_error(&write(dir.path(), "v.ply", ply));
+    assert!(
+        e.contains("v.ply: header line 4: a second `vertex` element"),
+        "{e}"
+    );
+}

@@ -211,3 +211,15 @@ fn documented_example_parses() {
         .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(f.scene.objects.len(), 2);
 }
+
+#[test]
+fn an_unknown_texture_kind_is_named_as_an_unknown_key() {
+    let text = "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, 0]\n\n[materials]\nm = { type = \"diffuse\", texture = { image = \"x.png\" } }\n";
+    let e = glint::scene::parse_scene(text, Path::new("t.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("t.toml:6:37: unknown key `image` in the texture of material `m`; expected one of: checker, mode, scale"),
+        "{e}"
+    );
+}

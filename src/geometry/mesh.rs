@@ -286,27 +286,29 @@ impl Mesh {
         SurfacePoint { p, p_err, n, ns }
     }
 
-    /// Texture coordinates at an object-space point of triangle `prim`:
-    /// interpolated from the mesh's uvs, or the barycentrics `(b1, b2)`.
-    pub fn uv_object(&self, p: Vec3, prim: u32) -> Vec2 {
+    /// Texture coordinates at an object-space point of triangle `prim`,
+    /// interpolated from the mesh's uvs; `None` if the mesh has none.
+    pub fn uv_object(&self, p: Vec3, prim: u32) -> Option<Vec2> {
+        if self.uvs.is_empty() {
+            return None;
+        }
         // In f64: |n|² is a fourth power of the triangle's size, which f32
         // cannot hold for meshes written at scales past 1e±9.
         let (v0, v1, v2) = self.vertices(prim);
         let (v0, v1, v2, p) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3(), p.as_dvec3());
         let n = (v1 - v0).cross(v2 - v0);
         let area = n.length_squared();
+        let [a, b, c] = self.triangles[prim as usize];
         if area == 0.0 {
-            return Vec2::ZERO;
+            return Some(self.uvs[a as usize]);
         }
         let b1 = ((p - v0).cross(v2 - v0).dot(n) / area) as f32;
         let b2 = ((v1 - v0).cross(p - v0).dot(n) / area) as f32;
-        if self.uvs.is_empty() {
-            return Vec2::new(b1, b2);
-        }
-        let [a, b, c] = self.triangles[prim as usize];
-        self.uvs[a as usize] * (1.0 - b1 - b2)
-            + self.uvs[b as usize] * b1
-            + self.uvs[c as usize] * b2
+        Some(
+            self.uvs[a as usize] * (1.0 - b1 - b2)
+                + self.uvs[b as usize] * b1
+                + self.uvs[c as usize] * b2,
+        )
     }
 }
 
@@ -428,7 +430,7 @@ impl MeshInstance {
     }
 
     #[inline(never)]
-    pub fn uv(&self, p: Vec3, prim: u32) -> Vec2 {
+    pub fn uv(&self, p: Vec3, prim: u32) -> Option<Vec2> {
         let p = match &self.transform {
             None => p,
             Some(x) => x.object_from_world.transform_point3a(p),

@@ -117,15 +117,17 @@ impl Shape {
         }
     }
 
-    /// Surface coordinates for textures at the surface point `p` of part `prim`.
+    /// Surface coordinates for textures at the surface point `p` of part
+    /// `prim`, or `None` where the shape has none: implicit surfaces, and
+    /// meshes whose file gives no texture coordinates (planar textures then
+    /// fall back to solid ones, see [`crate::scene::Texture::eval`]).
     #[inline]
-    pub fn uv(&self, p: Vec3, prim: u32) -> Vec2 {
+    pub fn uv(&self, p: Vec3, prim: u32) -> Option<Vec2> {
         match self {
-            Shape::Sphere(s) => s.uv(p),
-            Shape::Plane(s) => s.uv(p),
-            Shape::Cuboid(s) => s.uv(p, prim),
-            // World x and z: a projection from above.
-            Shape::Implicit(_) => Vec2::new(p.x, p.z),
+            Shape::Sphere(s) => Some(s.uv(p)),
+            Shape::Plane(s) => Some(s.uv(p)),
+            Shape::Cuboid(s) => Some(s.uv(p, prim)),
+            Shape::Implicit(_) => None,
             Shape::Mesh(s) => s.uv(p, prim),
         }
     }

@@ -377,7 +377,7 @@ impl<'c, 'i> Fields<'c, 'i> {
     }
 
     /// Rejects any key that was never asked for.
-    fn finish(self) -> Result<()> {
+    fn finish(&self) -> Result<()> {
         for (key, _) in self.table.iter() {
             if !self.known.contains(&key.get_ref().as_ref()) {
                 let mut known = self.known.clone();
@@ -509,6 +509,12 @@ fn read_camera(ctx: &Ctx, v: &Value) -> Result<Camera> {
 
 fn read_texture(ctx: &Ctx, v: &Value, what: &str) -> Result<Texture> {
     let mut f = Fields::of(ctx, v, format!("the texture of {what}"))?;
+    // The only kind of texture: a table without `checker` most likely asks
+    // for another kind (`image = …`), which is better named as unknown.
+    if f.table.get("checker").is_none() {
+        f.known.extend(["checker", "scale", "mode"]);
+        f.finish()?;
+    }
     let checker = f.require("checker")?;
     let pair = ctx.array(checker, "two colours [[r, g, b], [r, g, b]]")?;
     if pair.len() != 2 {

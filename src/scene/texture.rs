@@ -28,9 +28,12 @@ pub enum CheckerMode {
 
 impl Texture {
     /// The colour at world point `p`; `uv` gives the surface coordinates,
-    /// computed only for textures that use them.
+    /// computed only for textures that use them. A planar checker on a
+    /// surface without coordinates (`uv` gives `None`: implicit surfaces,
+    /// meshes without texture coordinates) is laid as a solid one, whose
+    /// cubes cut any surface in a regular pattern.
     #[inline]
-    pub fn eval(&self, p: Vec3, uv: impl FnOnce() -> Vec2) -> Color {
+    pub fn eval(&self, p: Vec3, uv: impl FnOnce() -> Option<Vec2>) -> Color {
         match *self {
             Texture::Solid(c) => c,
             Texture::Checker {
@@ -39,9 +42,13 @@ impl Texture {
                 scale,
                 mode,
             } => {
-                let cells = match mode {
-                    CheckerMode::Planar => (uv() / scale).floor().element_sum(),
-                    CheckerMode::Solid => (p / scale).floor().element_sum(),
+                let planar = match mode {
+                    CheckerMode::Planar => uv(),
+                    CheckerMode::Solid => None,
+                };
+                let cells = match planar {
+                    Some(uv) => (uv / scale).floor().element_sum(),
+                    None => (p / scale).floor().element_sum(),
                 };
                 if cells.rem_euclid(2.0) == 0.0 {
                     even
@@ -65,17 +72,36 @@ mod tests {
             scale: 0.5,
             mode: CheckerMode::Planar,
         };
-        assert_eq!(t.eval(Vec3::ZERO, || Vec2::new(0.1, 0.1)), Color::X);
-        assert_eq!(t.eval(Vec3::ZERO, || Vec2::new(0.6, 0.1)), Color::Y);
-        assert_eq!(t.eval(Vec3::ZERO, || Vec2::new(-0.1, 0.1)), Color::Y);
-        assert_eq!(t.eval(Vec3::ZERO, || Vec2::new(-0.1, -0.1)), Color::X);
+        assert_eq!(t.eval(Vec3::ZERO, || Some(Vec2::new(0.1, 0.1))), Color::X);
+        assert_eq!(t.eval(Vec3::ZERO, || Some(Vec2::new(0.6, 0.1))), Color::Y);
+        assert_eq!(t.eval(Vec3::ZERO, || Some(Vec2::new(-0.1, 0.1))), Color::Y);
+        assert_eq!(t.eval(Vec3::ZERO, || Some(Vec2::new(-0.1, -0.1))), Color::X);
         let s = Texture::Checker {
             even: Color::X,
             odd: Color::Y,
             scale: 1.0,
             mode: CheckerMode::Solid,
         };
-        assert_eq!(s.eval(Vec3::new(0.5, 0.5, 0.5), || Vec2::ZERO), Color::X);
-        assert_eq!(s.eval(Vec3::new(0.5, 1.5, 0.5), || Vec2::ZERO), Color::Y);
+        assert_eq!(
+            s.eval(Vec3::new(0.5, 0.5, 0.5), || Some(Vec2::ZERO)),
+            Color::X
+        );
+        assert_eq!(
+            s.eval(Vec3::new(0.5, 1.5, 0.5), || Some(Vec2::ZERO)),
+            Color::Y
+        );
+    }
+
+    #[test]
+    fn planar_checker_without_surface_coordinates_is_solid() {
+        let t = Texture::Checker {
+            even: Color::X,
+            odd: Color::Y,
+            scale: 1.0,
+            mode: CheckerMode::Planar,
+        };
+        assert_eq!(t.eval(Vec3::new(0.5, 0.5, 0.5), || None), Color::X);
+        assert_eq!(t.eval(Vec3::new(0.5, 1.5, 0.5), || None), Color::Y);
+        assert_eq!(t.eval(Vec3::new(1.5, 1.5, 0.5), || None), Color::X);
     }
 }

@@ -46,6 +46,7 @@ pub fn read(path: &Path) -> Result<Model, MeshError> {
     };
     let root = ::gltf::json::Root::from_slice(json)
         .map_err(|e| err("file", format!("cannot read it as glTF: {e}")))?;
+    check_position_accessors(&root).map_err(|(element, m)| err(&element, m))?;
     let doc =
         ::gltf::Document::from_json(root).map_err(|e| err("file", format!("invalid glTF: {e}")))?;
     let folder = path.parent().unwrap_or(Path::new(""));
@@ -185,6 +186,31 @@ pub fn read(path: &Path) -> Result<Model, MeshError> {
         seconds_build: build.elapsed().as_secs_f64(),
         warnings,
     })
+}
+
+/// `gltf-json`'s validation indexes the accessor of every primitive's
+/// POSITION attribute without checking it (a panic for an index out of
+/// range), so that index is checked here first.
+fn check_position_accessors(root: &::gltf::json::Root) -> Result<(), (String, String)> {
+    use ::gltf::json::mesh::Semantic;
+    use ::gltf::json::validation::Checked;
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            if let Some(i) = prim.attributes.get(&Checked::Valid(Semantic::Positions))
+                && i.value() >= root.accessors.len()
+            {
+                return Err((
+                    format!("mesh {m} primitive {p}"),
+                    format!(
+                        "its POSITION is accessor {}, but the file has {} accessors",
+                        i.value(),
+                        root.accessors.len()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The chunks of a GLB file.

@@ -176,17 +176,30 @@ pub fn parse(path: &Path, data: &[u8]) -> Result<RawMesh, MeshError> {
                     other => return Err(err(at(), format!("unknown format `{other}`"))),
                 })
             }
-            ["element", name, count] => elements.push(Element {
-                name: name.to_string(),
-                count: count
-                    .parse()
-                    .map_err(|_| err(at(), format!("bad element count `{count}`")))?,
-                properties: Vec::new(),
-            }),
+            ["element", name, count] => {
+                // Vertices and faces are read by name: a second element of
+                // either name would be ambiguous.
+                if matches!(*name, "vertex" | "face") && elements.iter().any(|e| e.name == *name) {
+                    return Err(err(at(), format!("a second `{name}` element")));
+                }
+                elements.push(Element {
+                    name: name.to_string(),
+                    count: count
+                        .parse()
+                        .map_err(|_| err(at(), format!("bad element count `{count}`")))?,
+                    properties: Vec::new(),
+                })
+            }
             ["property", "list", count, item, name] => {
                 let (Some(count), Some(item)) = (Type::parse(count), Type::parse(item)) else {
                     return Err(err(at(), format!("unknown list types `{count} {item}`")));
                 };
+                if matches!(count, Type::F32 | Type::F64) {
+                    return Err(err(
+                        at(),
+                        "a list's length must be an integer type, not float or double".into(),
+                    ));
+                }
                 elements
                     .last_mut()
                     .ok_or_else(|| err(at(), "property before any element".into()))?
@@ -460,10 +473,13 @@ fn binary(
                             return Err(err(at(), format!("bad list length {n}")));
                         }
                         pos += count.size();
-                        let len = n as usize * item.size();
-                        let items = body
-                            .get(pos..pos + len)
+                        // Checked: a length past the file must not wrap around.
+                        let items = (n as usize)
+                            .checked_mul(item.size())
+                            .and_then(|len| Some(pos..pos.checked_add(len)?))
+                            .and_then(|range| body.get(range))
                             .ok_or_else(|| err(at(), "file ends inside it".into()))?;
+                        let len = items.len();
                         if Some(k) == list && is_face {
                             polygon.clear();
                             for c in items.chunks_exact(item.size()) {
