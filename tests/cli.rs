@@ -357,3 +357,42 @@ fn a_film_too_large_for_memory_is_a_clear_error() {
     );
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
+
+/// A mesh whose BVH build would not fit in memory is refused before the
+/// build (here a binary PLY of 4M triangles under a 300 MB limit).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_mesh_too_large_for_memory_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 4_000_000u32;
+    let mut ply = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+         element face {n}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    .into_bytes();
+    for v in [[0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        ply.extend(v.iter().flat_map(|c| c.to_le_bytes()));
+    }
+    for _ in 0..n {
+        ply.push(3);
+        ply.extend([0i32, 1, 2].iter().flat_map(|i| i.to_le_bytes()));
+    }
+    std::fs::write(dir.path().join("big.ply"), ply).unwrap();
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 300000 && exec '{}' info big.ply",
+            env!("CARGO_BIN_EXE_glint")
+        ))
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "big.ply: file: building the BVH of its 4000000 triangles needs about 0.40 GB"
+        ),
+        "{err}"
+    );
+}

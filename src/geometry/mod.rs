@@ -49,8 +49,20 @@ pub struct TraceCounters {
     pub implicit_searches: u64,
     /// Interval evaluations of implicit surfaces' formulas.
     pub implicit_evaluations: u64,
+    /// Root searches that gave up at `MAX_SEARCH_EVALUATIONS`.
+    pub implicit_searches_cut: u64,
     /// BVH nodes visited and triangles tested inside meshes.
     pub bvh: TraversalCounters,
+}
+
+impl TraceCounters {
+    /// Counts a root search that started when `implicit_evaluations` was
+    /// `before` as cut if it spent the whole budget.
+    #[inline]
+    pub fn note_cut(&mut self, before: u64) {
+        let spent = self.implicit_evaluations - before;
+        self.implicit_searches_cut += (spent >= implicit::roots::MAX_SEARCH_EVALUATIONS) as u64;
+    }
 }
 
 /// The surface at a hit point.

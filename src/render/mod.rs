@@ -134,6 +134,7 @@ pub fn render_with<I: Integrator>(
         nan_pixels: counters.nan_pixels,
         bad_samples: counters.bad_samples,
         ray_trees_cut: counters.ray_trees_cut,
+        implicit_searches_cut: counters.implicit_searches_cut,
     };
     Ok((image, stats))
 }
@@ -242,5 +243,6 @@ fn render_tile<I: Integrator>(
         bad_samples,
         nan_pixels,
         ray_trees_cut: counters.ray_trees_cut,
+        implicit_searches_cut: counters.trace.implicit_searches_cut,
     }
 }

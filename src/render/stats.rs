@@ -32,6 +32,8 @@ pub struct TileCounters {
     pub nan_pixels: u64,
     /// Camera samples whose ray tree reached `MAX_RAY_TREE` secondary rays.
     pub ray_trees_cut: u64,
+    /// Implicit root searches that gave up at `MAX_SEARCH_EVALUATIONS`.
+    pub implicit_searches_cut: u64,
 }
 
 impl std::ops::AddAssign for TileCounters {
@@ -48,6 +50,7 @@ impl std::ops::AddAssign for TileCounters {
         self.bad_samples += o.bad_samples;
         self.nan_pixels += o.nan_pixels;
         self.ray_trees_cut += o.ray_trees_cut;
+        self.implicit_searches_cut += o.implicit_searches_cut;
     }
 }
 
@@ -89,4 +92,7 @@ pub struct RenderStats {
     /// Camera samples whose ray tree was cut at `MAX_RAY_TREE` secondary
     /// rays (Whitted with a large `max_depth` and a tiny `min_weight`).
     pub ray_trees_cut: u64,
+    /// Implicit root searches that gave up after `MAX_SEARCH_EVALUATIONS`
+    /// interval evaluations (and reported no root).
+    pub implicit_searches_cut: u64,
 }

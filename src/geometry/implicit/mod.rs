@@ -144,7 +144,10 @@ impl Implicit {
         let s = self.object_ray(ray);
         let (t0, t1) = self.clip(&s, ray.t_min as f64, ray.t_max as f64)?;
         counters.implicit_searches += 1;
-        let Root { t, .. } = s.first_root(t0, t1, &mut counters.implicit_evaluations)?;
+        let before = counters.implicit_evaluations;
+        let root = s.first_root(t0, t1, &mut counters.implicit_evaluations);
+        counters.note_cut(before);
+        let Root { t, .. } = root?;
         let t32 = t as f32;
         ray.contains(t32).then_some(ShapeHit {
             t: t32,
@@ -168,7 +171,10 @@ impl Implicit {
         match self.clip(&s, ray.t_min as f64, t_max) {
             Some((t0, t1)) => {
                 counters.implicit_searches += 1;
-                s.has_root(t0, t1, &mut counters.implicit_evaluations)
+                let before = counters.implicit_evaluations;
+                let hit = s.has_root(t0, t1, &mut counters.implicit_evaluations);
+                counters.note_cut(before);
+                hit
             }
             None => false,
         }
@@ -284,7 +290,12 @@ impl Implicit {
             }
         };
         while count < MAX_SHADOW_CROSSINGS
-            && let Some(r) = s.first_root(start, t1, &mut counters.implicit_evaluations)
+            && let Some(r) = {
+                let before = counters.implicit_evaluations;
+                let root = s.first_root(start, t1, &mut counters.implicit_evaluations);
+                counters.note_cut(before);
+                root
+            }
         {
             let n = self.transform.normal_to_world * self.gradient(s.o + s.d * r.t);
             let cos = n.normalize_or_zero().dot(d_world.normalize()).abs();

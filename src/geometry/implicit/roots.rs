@@ -37,6 +37,15 @@ pub const RELATIVE_TOLERANCE: f64 = 1e-12;
 /// Deepest subdivision: `2^-MAX_DEPTH` is below `RELATIVE_TOLERANCE`.
 const MAX_DEPTH: usize = 48;
 
+/// The most interval evaluations one root search may make. A formula whose
+/// enclosures stay loose over many small pieces without a root (a sum of
+/// terms that cancel, oscillating thousands of times across the bounds)
+/// could otherwise cost millions per ray and hold a render for hours; past
+/// this the search gives up and reports no root, and the render counts it
+/// (`implicit_searches_cut`). Ordinary formulas take a few to a few hundred
+/// (none of the heart-and-torus scene's searches needs 256).
+pub const MAX_SEARCH_EVALUATIONS: u64 = 1024;
+
 /// A root: the ray parameter and a bound on its error.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Root {
@@ -90,7 +99,8 @@ impl RaySearch<'_> {
     }
 
     /// The smallest root in `[t0, t1]`; `evaluations` counts the interval
-    /// evaluations.
+    /// evaluations. `None` also if the search made
+    /// [`MAX_SEARCH_EVALUATIONS`] (the caller tells by the count).
     pub fn first_root(&self, t0: f64, t1: f64, evaluations: &mut u64) -> Option<Root> {
         self.search(t0, t1, evaluations, true)
     }
@@ -111,7 +121,11 @@ impl RaySearch<'_> {
         let mut stack = [(0.0, 0.0); MAX_DEPTH * 2 + 2];
         stack[0] = (t0, t1);
         let mut len = 1;
+        let budget_end = *evaluations + MAX_SEARCH_EVALUATIONS;
         while len > 0 {
+            if *evaluations >= budget_end {
+                return None;
+            }
             len -= 1;
             let (a, b) = stack[len];
             *evaluations += 1;
