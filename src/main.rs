@@ -175,9 +175,8 @@ fn run_render(args: RenderArgs) -> Result<()> {
     ) = match &args.scene {
         Some(path) if is_mesh_file(path) => {
             let model = scene::meshio::load_mesh_file(path)?;
-            let file = scene::mesh_scene(&model, args.view, args.up).ok_or_else(|| {
-                anyhow::anyhow!("--view and --up must be non-zero and not parallel")
-            })?;
+            let file = scene::mesh_scene(&model, args.view, args.up)
+                .with_context(|| format!("cannot show `{}`", path.display()))?;
             (file, path.display().to_string())
         }
         Some(path) => (scene::load_scene_file(path)?, path.display().to_string()),

@@ -432,7 +432,7 @@ fn smooth_option_makes_vertex_normals() {
 
 /// The same mesh scene written at scales from 1e-12 to 1e12 (vertices
 /// scaled, not placed with a transform), framed by `mesh_scene`: a diffuse
-/// icosphere, a mirror torus and a glass sphere lit by a point light. From
+/// icosphere, a mirror torus and a glass sphere lit by its light. From
 /// 1e-9 to 1e9 the image is that of scale 1 (to f32 rounding, at a few
 /// silhouette pixels at most), and at every scale no sample is NaN or
 /// infinite and the diffuse mesh is lit. (Before normals were computed in
@@ -506,13 +506,18 @@ fn meshes_far_from_unit_size_render_the_same_image() {
         "only {} lit pixels at scale 1",
         lit(&reference)
     );
-    for exponent in [-12, -9, -6, -3, 3, 6, 9, 12] {
+    for exponent in [-30, -20, -12, -9, -6, -3, 3, 6, 9, 12, 20, 30] {
         let scale = 10f32.powi(exponent);
         let (image, stats) = render_at(scale);
         assert_eq!(
             stats.bad_samples, 0,
             "NaN or infinite samples at 1e{exponent}"
         );
+        if exponent.abs() > 12 {
+            // Past 1e±12 the triangle test's products (three lengths) leave
+            // f32's range and the mesh may vanish, but nothing is NaN.
+            continue;
+        }
         let lit_here = lit(&image);
         assert!(lit_here > 40, "only {lit_here} lit pixels at 1e{exponent}");
         if exponent.abs() <= 9 {

@@ -36,7 +36,7 @@ pub fn render_small(file: &SceneFile) {
 /// Renders a loaded mesh file as `glint render MESH` would, but small.
 pub fn render_model(model: &Model) {
     let up = glint::math::Vec3::Y;
-    if let Some(file) = mesh_scene(model, glint::math::Vec3::new(0.35, 0.3, 1.0), up) {
+    if let Ok(file) = mesh_scene(model, glint::math::Vec3::new(0.35, 0.3, 1.0), up) {
         render_small(&file);
     }
 }

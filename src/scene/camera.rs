@@ -18,7 +18,11 @@ impl Camera {
     /// Returns `None` when `look_at == position`, `up` is parallel to the view
     /// direction, or the field of view is not in (0°, 180°).
     pub fn try_new(position: Vec3, look_at: Vec3, up: Vec3, fov_y_deg: f32) -> Option<Self> {
-        let forward = (look_at - position).try_normalize()?;
+        // In f64: an f32 view vector shorter than 1e-19 has no f32 length.
+        let forward = match crate::math::normalize_robust(look_at - position) {
+            f if f == Vec3::ZERO => return None,
+            f => f,
+        };
         let right = forward.cross(up).try_normalize()?;
         let up = right.cross(forward);
         if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {

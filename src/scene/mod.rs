@@ -15,7 +15,7 @@ pub use camera::Camera;
 pub use light::Light;
 pub use load::{BUILTIN_WHITTED, SceneError, SceneFile, load_scene_file, parse_scene};
 pub use material::{Fresnel, Material, MaterialKind, fresnel_dielectric, reflect, refract};
-pub use mesh_scene::mesh_scene;
+pub use mesh_scene::{MeshSceneError, mesh_scene};
 pub use texture::{CheckerMode, Texture};
 
 use crate::accel::{Bvh, TraversalCounters};
