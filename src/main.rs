@@ -407,24 +407,22 @@ fn summary(scene_name: &str, report: &Report) -> String {
     } else {
         String::new()
     };
-    let cut = if s.ray_trees_cut > 0 {
-        format!(
+    // Work that a limit cut short.
+    let mut cut = String::new();
+    if s.ray_trees_cut > 0 {
+        cut += &format!(
             " {} camera samples reached the limit of {} secondary rays per sample, and their deepest rays were not traced (raise min_weight or lower max_depth).",
             group(s.ray_trees_cut),
             render::MAX_RAY_TREE
-        )
-    } else {
-        String::new()
-    };
-    let cut = if s.implicit_searches_cut > 0 {
-        format!(
-            "{cut} {} implicit-surface root searches gave up after {} interval evaluations and reported no hit (the formula's enclosures stay loose: simplify it or shrink its bounds).",
+        );
+    }
+    if s.implicit_searches_cut > 0 {
+        cut += &format!(
+            " {} implicit-surface root searches gave up after {} interval evaluations and reported no hit (the formula's enclosures stay loose: simplify it or shrink its bounds).",
             group(s.implicit_searches_cut),
             glint::geometry::implicit::roots::MAX_SEARCH_EVALUATIONS
-        )
-    } else {
-        cut
-    };
+        );
+    }
     format!(
         "Rendered {scene_name} at {}×{}, {} spp, {} integrator (max depth {}), {}. \
          Load {:.1} ms, render {:.1} ms. Rays: {} camera, {} shadow, {} reflection, {} refraction \
