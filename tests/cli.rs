@@ -334,21 +334,31 @@ fn runaway_ray_trees_are_bounded() {
     );
 }
 
+/// `glint ARGS` in `dir` under an address-space limit of `kb` kilobytes.
+#[cfg(target_os = "linux")]
+fn glint_under_limit(dir: &Path, kb: u64, args: &str) -> Output {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v {kb} && exec '{}' {args}",
+            env!("CARGO_BIN_EXE_glint")
+        ))
+        .current_dir(dir)
+        .output()
+        .expect("sh runs")
+}
+
 /// A film larger than the memory the process may use is refused with a
 /// message, not an abort (here under a 2 GB address-space limit).
 #[cfg(target_os = "linux")]
 #[test]
 fn a_film_too_large_for_memory_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new("sh")
-        .arg("-c")
-        .arg(format!(
-            "ulimit -v 2000000 && exec '{}' render --width 32768 --height 4096 -o big.png",
-            env!("CARGO_BIN_EXE_glint")
-        ))
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
+    let out = glint_under_limit(
+        dir.path(),
+        2_000_000,
+        "render --width 32768 --height 4096 -o big.png",
+    );
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
@@ -378,15 +388,7 @@ fn a_mesh_too_large_for_memory_is_a_clear_error() {
         ply.extend([0i32, 1, 2].iter().flat_map(|i| i.to_le_bytes()));
     }
     std::fs::write(dir.path().join("big.ply"), ply).unwrap();
-    let out = Command::new("sh")
-        .arg("-c")
-        .arg(format!(
-            "ulimit -v 300000 && exec '{}' info big.ply",
-            env!("CARGO_BIN_EXE_glint")
-        ))
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
+    let out = glint_under_limit(dir.path(), 300_000, "info big.ply");
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(

@@ -140,6 +140,41 @@ struct CleanObj {
     smoothing: bool,
 }
 
+/// One statement of an OBJ or MTL file: its 1-based line number, the whole
+/// logical line, its keyword and the words after it.
+struct Statement<'a> {
+    number: usize,
+    line: &'a str,
+    keyword: &'a str,
+    rest: Vec<&'a str>,
+}
+
+impl Statement<'_> {
+    /// Where it is, for messages: `line N`.
+    fn at(&self) -> String {
+        format!("line {}", self.number)
+    }
+
+    /// The text after the keyword, trimmed (names may hold spaces).
+    fn tail(&self) -> &str {
+        self.line.trim_start()[self.keyword.len()..].trim()
+    }
+}
+
+/// The statements of `lines` (from [`logical_lines`]), blank lines left out.
+fn statements(lines: &[(usize, String)]) -> impl Iterator<Item = Statement<'_>> {
+    lines.iter().filter_map(|(number, line)| {
+        let mut words = line.split_whitespace();
+        let keyword = words.next()?;
+        Some(Statement {
+            number: *number,
+            line,
+            keyword,
+            rest: words.collect(),
+        })
+    })
+}
+
 /// The logical lines of an OBJ or MTL file with their 1-based numbers: a
 /// line ending in `\` continues on the next.
 fn logical_lines(text: &str) -> Vec<(usize, String)> {
@@ -172,13 +207,10 @@ fn clean_obj(path: &Path, text: &str) -> Result<CleanObj, MeshError> {
     let mut out = String::with_capacity(text.len());
     let mut smoothing = false;
     let (mut v, mut vt, mut vn) = (0usize, 0usize, 0usize);
-    for (number, line) in logical_lines(text) {
-        let at = || format!("line {number}");
-        let mut words = line.split_whitespace();
-        let Some(keyword) = words.next() else {
-            continue;
-        };
-        let rest: Vec<&str> = words.collect();
+    let lines = logical_lines(text);
+    for st in statements(&lines) {
+        let (line, keyword, rest) = (st.line, st.keyword, &st.rest);
+        let at = || st.at();
         let numbers = |what: &str| -> Result<Vec<f32>, MeshError> {
             rest.iter()
                 .map(|w| match w.parse::<f32>() {
@@ -258,7 +290,7 @@ fn clean_obj(path: &Path, text: &str) -> Result<CleanObj, MeshError> {
                     ));
                 }
                 out.push('f');
-                for corner in &rest {
+                for corner in rest {
                     out.push(' ');
                     let fields: Vec<&str> = corner.split('/').collect();
                     if fields.len() > 3 || fields[0].is_empty() {
@@ -310,7 +342,7 @@ fn clean_obj(path: &Path, text: &str) -> Result<CleanObj, MeshError> {
                 let _ = writeln!(out, "{keyword} {}", rest.join(" "));
             }
             "mtllib" => {
-                let name = line.trim_start()[keyword.len()..].trim();
+                let name = st.tail();
                 if !name.is_empty() {
                     let _ = writeln!(out, "mtllib {name}");
                 }
@@ -353,13 +385,10 @@ fn load_library(folder: &Path, name: &str) -> Result<String, Library> {
 /// statements are left out.
 fn clean_mtl(path: &Path, text: &str) -> Result<String, MeshError> {
     let mut out = String::with_capacity(text.len());
-    for (number, line) in logical_lines(text) {
-        let at = || format!("line {number}");
-        let mut words = line.split_whitespace();
-        let Some(keyword) = words.next() else {
-            continue;
-        };
-        let rest: Vec<&str> = words.collect();
+    let lines = logical_lines(text);
+    for st in statements(&lines) {
+        let (line, keyword, rest) = (st.line, st.keyword, &st.rest);
+        let at = || st.at();
         let number = |w: &str| -> Result<f32, MeshError> {
             match w.parse::<f32>() {
                 Ok(x) if x.is_finite() => Ok(x),
@@ -372,7 +401,7 @@ fn clean_mtl(path: &Path, text: &str) -> Result<String, MeshError> {
         };
         match keyword {
             "newmtl" => {
-                let name = line.trim_start()[keyword.len()..].trim();
+                let name = st.tail();
                 if name.is_empty() {
                     return Err(MeshError::new(path, &at(), "`newmtl` without a name"));
                 }
