@@ -50,9 +50,14 @@ impl Image {
         self.pixels
             .iter()
             .flat_map(|c| c.to_array())
-            .map(|v| (srgb_encode(v) * 255.0 + 0.5) as u8)
+            .map(srgb8)
             .collect()
     }
+}
+
+/// A linear channel as an 8-bit sRGB value, rounded.
+fn srgb8(v: f32) -> u8 {
+    (srgb_encode(v) * 255.0 + 0.5) as u8
 }
 
 /// The sRGB transfer function: `12.92·v` below 0.0031308, else
@@ -159,11 +164,17 @@ impl StagedFile {
             }
         })?;
         let file = self.file.as_mut().expect("open until commit");
+        let mut out = std::io::BufWriter::new(file);
         let written = match format {
-            ImageFormat::Png => write_png(std::io::BufWriter::new(file), image),
-            ImageFormat::Exr => write_exr(std::io::BufWriter::new(file), image),
+            ImageFormat::Png => write_png(&mut out, image),
+            ImageFormat::Exr => write_exr(&mut out, image),
         };
-        written.map_err(|e| self.error(e))
+        // Flushed here, not on drop, where a failed write (a full disk)
+        // would go unnoticed and a truncated file be committed.
+        let flushed =
+            written.and_then(|()| std::io::Write::flush(&mut out).map_err(|e| e.to_string()));
+        drop(out);
+        flushed.map_err(|e| self.error(e))
     }
 
     /// Flushes the data to disk and renames the temporary file over the
@@ -217,7 +228,7 @@ fn write_png(out: impl std::io::Write, image: &Image) -> Result<(), String> {
             image.pixels[y * w..(y + 1) * w]
                 .iter()
                 .flat_map(|c| c.to_array())
-                .map(|v| (srgb_encode(v) * 255.0 + 0.5) as u8),
+                .map(srgb8),
         );
         std::io::Write::write_all(&mut stream, &row).map_err(|e| e.to_string())?;
     }
