@@ -4,7 +4,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glint::render::{self, ImageFormat, RenderStats, StagedFile};
 use glint::scene::{self, GeometryStats, SceneFile};
-use glint::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP};
+use glint::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP, Rect};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -30,6 +30,20 @@ enum Command {
     Info {
         /// The mesh file.
         mesh: PathBuf,
+    },
+    /// Assemble EXR parts (crops and/or sample ranges written by `glint
+    /// render … -o PART.exr`) into one image, exactly as one render would
+    /// have made it.
+    Merge {
+        /// The parts (.exr files written by glint render).
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        /// The merged image, .exr (mergeable again) or .png.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Print nothing but errors.
+        #[arg(long, short)]
+        quiet: bool,
     },
 }
 
@@ -64,6 +78,21 @@ struct RenderArgs {
     /// Light transport algorithm.
     #[arg(long, value_enum)]
     integrator: Option<IntegratorArg>,
+    /// Render only the pixels x ∈ [X0, X1), y ∈ [Y0, Y1) of the frame
+    /// (an EXR keeps the frame as its display window).
+    #[arg(long, value_name = "X0,X1,Y0,Y1", conflicts_with = "tiles")]
+    crop: Option<Rect>,
+    /// Cut the frame into a grid of N×M tiles (N across, M down) and render
+    /// the one given by --tile-index.
+    #[arg(long, value_name = "NxM", value_parser = parse_grid, requires = "tile_index")]
+    tiles: Option<(u32, u32)>,
+    /// Which tile of --tiles to render, from 0 (top left), row by row.
+    #[arg(long, value_name = "K", requires = "tiles")]
+    tile_index: Option<u32>,
+    /// The number of the first sample: render samples K .. K+spp of each
+    /// pixel, to merge with renders of the other samples (glint merge).
+    #[arg(long, value_name = "K")]
+    sample_offset: Option<u32>,
     /// Also write the statistics as JSON to this file.
     #[arg(long, value_name = "FILE")]
     stats_json: Option<PathBuf>,
@@ -105,6 +134,16 @@ fn parse_vec3(s: &str) -> Result<glint::math::Vec3, String> {
     }
 }
 
+/// `4x4` → (4, 4): columns across, rows down.
+fn parse_grid(s: &str) -> Result<(u32, u32), String> {
+    let err = || format!("expected a grid NxM of whole numbers from 1, found `{s}`");
+    let (n, m) = s.split_once(['x', 'X']).ok_or_else(err)?;
+    match (n.trim().parse::<u32>(), m.trim().parse::<u32>()) {
+        (Ok(n), Ok(m)) if n > 0 && m > 0 => Ok((n, m)),
+        _ => Err(err()),
+    }
+}
+
 fn parse_weight(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(x) if (0.0..=1.0).contains(&x) => Ok(x),
@@ -117,6 +156,11 @@ fn main() {
     let result = match cli.command {
         Some(Command::Render(args)) => run_render(args),
         Some(Command::Info { mesh }) => run_info(&mesh),
+        Some(Command::Merge {
+            parts,
+            output,
+            quiet,
+        }) => run_merge(&parts, &output, quiet),
         None => run_render(RenderArgs::default()),
     };
     if let Err(e) = result {
@@ -163,6 +207,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let mut stats_file = args.stats_json.as_deref().map(stage).transpose()?;
 
     let load_start = Instant::now();
+    // `source` is what the scene came from, for the parts' fingerprint.
     let (
         SceneFile {
             scene,
@@ -172,20 +217,38 @@ fn run_render(args: RenderArgs) -> Result<()> {
             warnings,
         },
         scene_name,
+        source,
     ) = match &args.scene {
         Some(path) if is_mesh_file(path) => {
             let model = scene::meshio::load_mesh_file(path)?;
             let file = scene::mesh_scene(&model, args.view, args.up)
                 .with_context(|| format!("cannot show `{}`", path.display()))?;
-            (file, path.display().to_string())
+            let source = format!(
+                "mesh {:?} view {} up {}",
+                path.file_name(),
+                args.view,
+                args.up
+            );
+            (file, path.display().to_string(), source.into_bytes())
         }
-        Some(path) => (scene::load_scene_file(path)?, path.display().to_string()),
+        Some(path) => {
+            let file = scene::load_scene_file(path)?;
+            let text = scene::files::read_text_file(path).map_err(|e| {
+                anyhow::anyhow!(
+                    "cannot read scene file `{}`: {}",
+                    path.display(),
+                    e.reason()
+                )
+            })?;
+            (file, path.display().to_string(), text.into_bytes())
+        }
         None => (
             scene::parse_scene(
                 scene::BUILTIN_WHITTED,
                 Path::new("scenes/whitted.toml (built in)"),
             )?,
             "the built-in Whitted scene".to_string(),
+            scene::BUILTIN_WHITTED.as_bytes().to_vec(),
         ),
     };
     if !args.quiet {
@@ -223,8 +286,53 @@ fn run_render(args: RenderArgs) -> Result<()> {
             IntegratorArg::Whitted => IntegratorKind::Whitted,
         };
     }
+    settings.crop = args.crop;
+    if let (Some((n, m)), Some(k)) = (args.tiles, args.tile_index) {
+        let tile = Rect::tile(settings.width, settings.height, n, m, k);
+        settings.crop = Some(tile.ok_or_else(|| {
+            if k as u64 >= n as u64 * m as u64 {
+                anyhow::anyhow!("--tile-index {k} is past the last of {n}×{m} tiles, {}", n as u64 * m as u64 - 1)
+            } else {
+                anyhow::anyhow!(
+                    "a {}×{} frame cannot be cut into {n}×{m} tiles (more tiles than pixels across or down)",
+                    settings.width,
+                    settings.height
+                )
+            }
+        })?);
+    }
+    if let Some(k) = args.sample_offset {
+        settings.sample_offset = k;
+    }
+    settings
+        .validate()
+        .map_err(|e| anyhow::anyhow!("invalid render settings: {e}"))?;
+    // The settings that change pixels (not the crop, the samples or the
+    // threads, which parts differ in), the scene's source, and what it
+    // built into.
+    let fingerprint = render::parts::fingerprint(&[
+        concat!("glint ", env!("CARGO_PKG_VERSION")).as_bytes(),
+        &source,
+        format!(
+            "{}x{} {} depth {} weight {:08x}",
+            settings.width,
+            settings.height,
+            settings.integrator,
+            settings.max_depth,
+            settings.min_weight.to_bits()
+        )
+        .as_bytes(),
+        format!(
+            "{:?} {:?} {:?} {:?}",
+            scene.geometry_stats(),
+            scene.camera,
+            scene.lights,
+            scene.materials
+        )
+        .as_bytes(),
+    ]);
 
-    let pixels = settings.width as u64 * settings.height as u64;
+    let pixels = settings.rect().area();
     let bar = if !args.quiet && std::io::stderr().is_terminal() {
         let bar = ProgressBar::new(pixels);
         bar.set_style(
@@ -238,12 +346,15 @@ fn run_render(args: RenderArgs) -> Result<()> {
     } else {
         ProgressBar::hidden()
     };
-    let (image, mut stats) = render::render(&scene, &settings, &|n| bar.inc(n))?;
+    // An EXR keeps the exact sums, so that it can be merged with others.
+    let keep_sums = ImageFormat::from_path(&output) == Some(ImageFormat::Exr);
+    let (mut film, mut stats) = render::render_film(&scene, &settings, keep_sums, &|n| bar.inc(n))?;
     bar.finish_and_clear();
     stats.seconds_load = seconds_load;
+    film.header.fingerprint = fingerprint;
 
-    image_file.write_image(&image)?;
-    drop(image);
+    image_file.write_film(&film)?;
+    drop(film);
     let report = Report::new(stats, scene.geometry_stats(), seconds_build);
     let mut outputs = vec![image_file];
     if let Some(mut file) = stats_file.take() {
@@ -302,6 +413,45 @@ fn peak_rss_bytes() -> Option<u64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
+}
+
+fn run_merge(parts: &[PathBuf], output: &Path, quiet: bool) -> Result<()> {
+    if ImageFormat::from_path(output).is_none() {
+        bail!(
+            "cannot write `{}`: unsupported file extension (use .png or .exr)",
+            output.display()
+        );
+    }
+    let mut out = StagedFile::create(output)?;
+    let mut headers = Vec::with_capacity(parts.len());
+    for p in parts {
+        headers.push((p.display().to_string(), render::read_film_header(p)?));
+    }
+    let header = render::parts::plan_merge(&headers)?;
+    let mut merger = render::parts::Merger::new(header.clone())
+        .context("not enough memory for the merged image")?;
+    for (p, (name, planned)) in parts.iter().zip(&headers) {
+        let film = render::read_film_exr(p)?;
+        if &film.header != planned {
+            bail!("`{name}` changed while it was being merged");
+        }
+        merger.add(&film);
+    }
+    let film = merger.finish();
+    out.write_film(&film)?;
+    out.commit()?;
+    if !quiet {
+        eprintln!(
+            "Merged {} into {}: {}×{} frame, pixels {}, samples {}.",
+            count(parts.len() as u64, "part", "parts"),
+            output.display(),
+            header.width,
+            header.height,
+            header.rect,
+            header.samples
+        );
+    }
+    Ok(())
 }
 
 fn run_info(path: &Path) -> Result<()> {
@@ -423,13 +573,27 @@ fn summary(scene_name: &str, report: &Report) -> String {
             glint::geometry::implicit::roots::MAX_SEARCH_EVALUATIONS
         );
     }
+    let [x0, x1, y0, y1] = s.crop;
+    let part = if [x0, x1, y0, y1] != [0, s.width, 0, s.height] {
+        format!(" (pixels x {x0}..{x1}, y {y0}..{y1})")
+    } else {
+        String::new()
+    };
+    let samples = if s.sample_offset > 0 {
+        format!(
+            "samples {}..{}",
+            s.sample_offset,
+            s.sample_offset as u64 + s.spp as u64
+        )
+    } else {
+        format!("{} spp", s.spp)
+    };
     format!(
-        "Rendered {scene_name} at {}×{}, {} spp, {} integrator (max depth {}), {}. \
+        "Rendered {scene_name} at {}×{}{part}, {samples}, {} integrator (max depth {}), {}. \
          Load {:.1} ms, render {:.1} ms. Rays: {} camera, {} shadow, {} reflection, {} refraction \
          ({} in all, {:.1} M rays/s). {} intersection tests{implicit}.{nan}{cut}{meshes}",
         s.width,
         s.height,
-        s.spp,
         s.integrator,
         s.max_depth,
         count(s.threads as u64, "thread", "threads"),

@@ -80,6 +80,8 @@ fn stats_json_has_the_documented_keys() {
     assert_eq!(v["width"], 40);
     assert_eq!(v["height"], 30);
     assert_eq!(v["spp"], 1);
+    assert_eq!(v["sample_offset"], 0);
+    assert_eq!(v["crop"], serde_json::json!([0, 40, 0, 30]));
     assert!(v["seconds_render"].as_f64().unwrap() > 0.0);
     assert!(v["seconds_load"].as_f64().is_some());
     assert_eq!(v["rays"]["camera"], 1200);

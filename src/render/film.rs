@@ -2,7 +2,9 @@
 //! the file extension, written to a temporary file and renamed into place so
 //! that a failed or interrupted write never leaves a partial image.
 
+use super::parts::{Film, FilmHeader, SampleSum, check_header};
 use crate::math::Color;
+use crate::settings::{Rect, SampleRange};
 use std::path::{Path, PathBuf};
 
 /// Linear-RGB radiance per pixel, row-major from the top-left.
@@ -156,8 +158,28 @@ impl StagedFile {
         file.write_all(bytes).map_err(|e| self.error(e))
     }
 
-    /// Writes `image` in the format of the final path's extension.
+    /// Writes `image` in the format of the final path's extension (an EXR
+    /// as a whole frame without sums).
     pub fn write_image(&mut self, image: &Image) -> Result<(), ImageWriteError> {
+        self.write_film(&Film {
+            header: FilmHeader {
+                width: image.width,
+                height: image.height,
+                rect: Rect::full(image.width, image.height),
+                samples: SampleRange { start: 0, count: 1 },
+                fingerprint: String::new(),
+            },
+            image: image.clone(),
+            sums: Vec::new(),
+        })
+    }
+
+    /// Writes `film` in the format of the final path's extension: a PNG of
+    /// its pixels, or an EXR with its frame as display window, its crop as
+    /// data window, and its sample range, fingerprint and sums (see
+    /// [`write_film_exr`]).
+    pub fn write_film(&mut self, film: &Film) -> Result<(), ImageWriteError> {
+        let image = &film.image;
         let format = ImageFormat::from_path(&self.path).ok_or_else(|| {
             ImageWriteError::UnsupportedFormat {
                 path: self.path.clone(),
@@ -167,7 +189,7 @@ impl StagedFile {
         let mut out = std::io::BufWriter::new(file);
         let written = match format {
             ImageFormat::Png => write_png(&mut out, image),
-            ImageFormat::Exr => write_exr(&mut out, image),
+            ImageFormat::Exr => write_film_exr(&mut out, film),
         };
         // Flushed here, not on drop, where a failed write (a full disk)
         // would go unnoticed and a truncated file be committed.
@@ -236,17 +258,261 @@ fn write_png(out: impl std::io::Write, image: &Image) -> Result<(), String> {
     writer.finish().map_err(|e| e.to_string())
 }
 
-/// 32-bit float linear RGB OpenEXR.
-fn write_exr(out: impl std::io::Write + std::io::Seek, image: &Image) -> Result<(), String> {
+/// The EXR header attribute (a text vector of `key=value` entries) that
+/// says which part of which render a file holds. One attribute, because the
+/// `exr` crate writes several in a random order, and the same render must
+/// give the same file.
+const ATTR_PART: &str = "glint.part";
+const KEY_FINGERPRINT: &str = "fingerprint";
+const KEY_SAMPLE_START: &str = "sampleStart";
+const KEY_SAMPLE_COUNT: &str = "sampleCount";
+
+/// The name of the 32-bit word `word` (0 the lowest) of channel `c`'s sums.
+fn sum_channel(c: &str, word: usize) -> String {
+    format!("glint.sum.{c}.{word}")
+}
+
+/// 32-bit float linear RGB OpenEXR of a film (the OpenEXR convention for a
+/// crop: the display window is the frame, the data window the crop), with
+/// its sample range and fingerprint as text attributes and, if it has them,
+/// its exact sums as twelve 32-bit unsigned channels (`glint.sum.R.0` …
+/// `glint.sum.B.3`, four words of each 128-bit sum, lowest first).
+fn write_film_exr(out: impl std::io::Write + std::io::Seek, film: &Film) -> Result<(), String> {
     use exr::prelude::*;
-    let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
-        let c = image.get(p.x() as u32, p.y() as u32);
-        (c.x, c.y, c.z)
-    });
-    Image::from_channels((image.width as usize, image.height as usize), channels)
+    let h = &film.header;
+    let pixels = &film.image.pixels;
+    let mut channels: Vec<AnyChannel<FlatSamples>> = ["R", "G", "B"]
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            AnyChannel::new(
+                *name,
+                FlatSamples::F32(pixels.iter().map(|c| c.to_array()[k]).collect()),
+            )
+        })
+        .collect();
+    if !film.sums.is_empty() {
+        for (k, name) in ["R", "G", "B"].iter().enumerate() {
+            for word in 0..4 {
+                let words = film.sums.iter().map(|s| (s.0[k] >> (32 * word)) as u32);
+                let mut channel = AnyChannel::new(
+                    sum_channel(name, word).as_str(),
+                    FlatSamples::U32(words.collect()),
+                );
+                channel.quantize_linearly = true;
+                channels.push(channel);
+            }
+        }
+    }
+    let mut attributes = LayerAttributes {
+        layer_position: Vec2(h.rect.x0 as i32, h.rect.y0 as i32),
+        ..Default::default()
+    };
+    let entries = [
+        format!("{KEY_FINGERPRINT}={}", h.fingerprint),
+        format!("{KEY_SAMPLE_START}={}", h.samples.start),
+        format!("{KEY_SAMPLE_COUNT}={}", h.samples.count),
+    ];
+    attributes.other.insert(
+        Text::from(ATTR_PART),
+        AttributeValue::TextVector(entries.iter().map(|e| Text::from(e.as_str())).collect()),
+    );
+    let layer = Layer::new(
+        (h.rect.width() as usize, h.rect.height() as usize),
+        attributes,
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(channels.into()),
+    );
+    let display = IntegerBounds::new((0, 0), (h.width as usize, h.height as usize));
+    Image::new(ImageAttributes::new(display), layer)
         .write()
         .to_buffered(out)
         .map_err(|e| e.to_string())
+}
+
+/// Why an EXR part could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum FilmReadError {
+    #[error("cannot read `{}`: {reason}", path.display())]
+    Io { path: PathBuf, reason: String },
+    #[error("`{}` is not a glint part: {reason}", path.display())]
+    NotAPart { path: PathBuf, reason: String },
+}
+
+/// Reads the header of an EXR written by glint (see [`write_film_exr`]),
+/// without its pixels.
+pub fn read_film_header(path: &Path) -> Result<FilmHeader, FilmReadError> {
+    let bytes = read_part_file(path)?;
+    header_from_bytes(path, &bytes)
+}
+
+/// The whole file, if it is a regular file (a FIFO or device is refused
+/// before it is opened).
+fn read_part_file(path: &Path) -> Result<Vec<u8>, FilmReadError> {
+    crate::scene::files::read_regular_file(path).map_err(|e| FilmReadError::Io {
+        path: path.to_path_buf(),
+        reason: e.reason(),
+    })
+}
+
+fn header_from_bytes(path: &Path, bytes: &[u8]) -> Result<FilmHeader, FilmReadError> {
+    let meta =
+        exr::meta::MetaData::read_from_buffered(bytes, false).map_err(|e| FilmReadError::Io {
+            path: path.to_path_buf(),
+            reason: exr_reason(e),
+        })?;
+    let not_a_part = |reason: String| FilmReadError::NotAPart {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let [header] = &meta.headers[..] else {
+        return Err(not_a_part(format!(
+            "it has {} layers, not one",
+            meta.headers.len()
+        )));
+    };
+    header_of(
+        &header.shared_attributes.display_window,
+        header.own_attributes.layer_position,
+        header.layer_size,
+        &header.own_attributes.other,
+    )
+    .map_err(not_a_part)
+}
+
+/// The film header that a layer's attributes describe.
+fn header_of(
+    display: &exr::meta::attribute::IntegerBounds,
+    position: exr::math::Vec2<i32>,
+    size: exr::math::Vec2<usize>,
+    other: &std::collections::HashMap<
+        exr::meta::attribute::Text,
+        exr::meta::attribute::AttributeValue,
+    >,
+) -> Result<FilmHeader, String> {
+    use exr::meta::attribute::AttributeValue;
+    let Some(AttributeValue::TextVector(entries)) =
+        other.get(&exr::meta::attribute::Text::from(ATTR_PART))
+    else {
+        return Err(format!("it has no `{ATTR_PART}` attribute"));
+    };
+    let entries: Vec<String> = entries.iter().map(|t| t.to_string()).collect();
+    let text = |key: &str| -> Result<String, String> {
+        entries
+            .iter()
+            .find_map(|e| e.strip_prefix(key)?.strip_prefix('=').map(str::to_string))
+            .ok_or_else(|| format!("its `{ATTR_PART}` attribute has no `{key}`"))
+    };
+    let number = |key: &str| -> Result<u32, String> {
+        let t = text(key)?;
+        t.parse()
+            .map_err(|_| format!("its `{key}`, `{t}`, is not a whole number from 0 to 2^32 − 1"))
+    };
+    if display.position.x() != 0 || display.position.y() != 0 {
+        return Err("its display window does not start at (0, 0)".into());
+    }
+    let side = |v: usize| u32::try_from(v).unwrap_or(u32::MAX);
+    let corner = |v: i32| {
+        u32::try_from(v)
+            .map_err(|_| "its data window starts left of or above its display window".to_string())
+    };
+    let (x0, y0) = (corner(position.x())?, corner(position.y())?);
+    let header = FilmHeader {
+        width: side(display.size.x()),
+        height: side(display.size.y()),
+        rect: Rect {
+            x0,
+            x1: x0.saturating_add(side(size.x())),
+            y0,
+            y1: y0.saturating_add(side(size.y())),
+        },
+        samples: SampleRange {
+            start: number(KEY_SAMPLE_START)?,
+            count: number(KEY_SAMPLE_COUNT)?,
+        },
+        fingerprint: text(KEY_FINGERPRINT)?,
+    };
+    check_header(&header)?;
+    Ok(header)
+}
+
+/// The message of an EXR error, without its kind's prefix.
+fn exr_reason(e: exr::error::Error) -> String {
+    match e {
+        exr::error::Error::Io(io) => io.to_string(),
+        other => format!("it is not an OpenEXR file glint can read ({other})"),
+    }
+}
+
+/// Reads a film written by glint to EXR, with its sums (it is refused if it
+/// has none). The header is read and checked first, so a hostile file
+/// cannot make the pixels' allocation huge.
+pub fn read_film_exr(path: &Path) -> Result<Film, FilmReadError> {
+    use exr::prelude::*;
+    let bytes = read_part_file(path)?;
+    let header = header_from_bytes(path, &bytes)?;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(&bytes))
+        .map_err(|e| FilmReadError::Io {
+            path: path.to_path_buf(),
+            reason: exr_reason(e),
+        })?;
+    let not_a_part = |reason: String| FilmReadError::NotAPart {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let n = header.rect.area() as usize;
+    let channels = &image.layer_data.channel_data.list;
+    let find = |name: &str| channels.iter().find(|c| c.name == *name);
+    let mut rgb: [&[f32]; 3] = [&[]; 3];
+    for (k, name) in ["R", "G", "B"].iter().enumerate() {
+        match find(name).map(|c| &c.sample_data) {
+            Some(FlatSamples::F32(v)) if v.len() == n => rgb[k] = v,
+            _ => {
+                return Err(not_a_part(format!(
+                    "it has no 32-bit float channel `{name}`"
+                )));
+            }
+        }
+    }
+    let mut sums = vec![SampleSum::default(); n];
+    for (k, name) in ["R", "G", "B"].iter().enumerate() {
+        for word in 0..4 {
+            let channel = sum_channel(name, word);
+            match find(&channel).map(|c| &c.sample_data) {
+                Some(FlatSamples::U32(v)) if v.len() == n => {
+                    for (s, &w) in sums.iter_mut().zip(v) {
+                        s.0[k] |= (w as u128) << (32 * word);
+                    }
+                }
+                _ => {
+                    return Err(not_a_part(format!(
+                        "it has no 32-bit unsigned channel `{channel}` (render parts to .exr with glint render to merge them)"
+                    )));
+                }
+            }
+        }
+    }
+    if sums.iter().any(|s| s.0.iter().any(|&c| c >= 1 << 127)) {
+        return Err(not_a_part("its sums are out of range".into()));
+    }
+    let pixels = (0..n)
+        .map(|i| Color::new(rgb[0][i], rgb[1][i], rgb[2][i]))
+        .collect();
+    Ok(Film {
+        image: self::Image {
+            width: header.rect.width(),
+            height: header.rect.height(),
+            pixels,
+        },
+        header,
+        sums,
+    })
 }
 
 /// Writes `image` to `path` (PNG or EXR by extension), atomically: the data go

@@ -1,21 +1,25 @@
 //! Rendering: pixels in tiles, in parallel, deterministically.
 //!
-//! Each pixel's samples depend only on the pixel's coordinates (its random
-//! sequence is seeded from them), tiles are independent, and their results are
-//! assembled in a fixed order, so an image is the same bit for bit whatever the
-//! number of threads.
+//! Each sample depends only on the pixel's coordinates and the sample's
+//! number (its random numbers are seeded from them), and a pixel's samples
+//! are summed exactly ([`SampleSum`]), so an image is the same bit for bit
+//! whatever the number of threads, and a crop or a range of samples rendered
+//! apart is exactly that part of the whole render ([`parts`]).
 
 mod film;
 mod integrator;
 pub mod memory;
+pub mod parts;
 mod sampler;
 mod stats;
 
 pub use film::{
-    Image, ImageFormat, ImageWriteError, StagedFile, commit_all, srgb_encode, write_image,
+    FilmReadError, Image, ImageFormat, ImageWriteError, StagedFile, commit_all, read_film_exr,
+    read_film_header, srgb_encode, write_image,
 };
 pub use integrator::{Counters, Integrator, MAX_RAY_TREE, Raycast, Whitted};
-pub use sampler::{Pcg32, pixel_offset, strata};
+pub use parts::{Film, FilmHeader, MergeError, SampleSum};
+pub use sampler::{Pcg32, PixelSampler};
 pub use stats::{RayCounts, RenderStats, TileCounters};
 
 use crate::math::Color;
@@ -34,7 +38,7 @@ pub enum RenderError {
     #[error("cannot start {threads} render threads: {message}")]
     ThreadPool { threads: usize, message: String },
     #[error(
-        "a {width}×{height} image needs {:.2} GB for its pixels (16 bytes each), but only {:.2} GB of memory is available; render a smaller image",
+        "a {width}×{height} image needs {:.2} GB for its pixels, but only {:.2} GB of memory is available; render a smaller image",
         *needed as f64 / 1e9,
         *available as f64 / 1e9
     )]
@@ -46,15 +50,28 @@ pub enum RenderError {
     },
 }
 
-/// Renders `scene` with `settings`. `progress` is called (from worker threads)
-/// with the number of pixels of each finished tile.
+/// Renders `scene` with `settings`: the pixels of `settings.rect()`, as an
+/// image of that size. `progress` is called (from worker threads) with the
+/// number of pixels of each finished tile.
 pub fn render(
     scene: &Scene,
     settings: &RenderSettings,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Image, RenderStats), RenderError> {
+    render_film(scene, settings, false, progress).map(|(film, stats)| (film.image, stats))
+}
+
+/// [`render`] as a [`Film`], which also records the crop and the sample
+/// range, and with `keep_sums` the exact per-pixel sums that merging needs
+/// (48 more bytes per pixel).
+pub fn render_film(
+    scene: &Scene,
+    settings: &RenderSettings,
+    keep_sums: bool,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Film, RenderStats), RenderError> {
     match settings.integrator {
-        IntegratorKind::Raycast => render_with(scene, settings, &Raycast, progress),
+        IntegratorKind::Raycast => render_with(scene, settings, &Raycast, keep_sums, progress),
         IntegratorKind::Whitted => render_with(
             scene,
             settings,
@@ -62,38 +79,65 @@ pub fn render(
                 max_depth: settings.max_depth,
                 min_weight: settings.min_weight,
             },
+            keep_sums,
             progress,
         ),
     }
 }
 
-/// [`render`] with a given integrator.
+/// [`render_film`] with a given integrator.
 pub fn render_with<I: Integrator>(
     scene: &Scene,
     settings: &RenderSettings,
     integrator: &I,
+    keep_sums: bool,
     progress: &(dyn Fn(u64) + Sync),
-) -> Result<(Image, RenderStats), RenderError> {
+) -> Result<(Film, RenderStats), RenderError> {
     settings.validate().map_err(RenderError::Settings)?;
-    let (width, height) = (settings.width, settings.height);
+    let rect = settings.rect();
+    let (width, height) = (rect.width(), rect.height());
+    let per_pixel = std::mem::size_of::<Color>() as u64
+        + if keep_sums {
+            std::mem::size_of::<SampleSum>() as u64
+        } else {
+            0
+        };
+    let needed = rect.area() * per_pixel;
     let memory_error = |available| RenderError::Memory {
         width,
         height,
-        needed: Image::bytes_for(width, height),
+        needed,
         available,
     };
     // Refused up front where the system says how much it has; allocated
     // fallibly in any case.
     if let Some(available) = memory::available_bytes()
-        && Image::bytes_for(width, height) > available
+        && needed > available
     {
         return Err(memory_error(available));
     }
     let image = Image::try_new(width, height).ok_or_else(|| memory_error(0))?;
+    let mut sums = Vec::new();
+    if keep_sums {
+        sums.try_reserve_exact(rect.area() as usize)
+            .map_err(|_| memory_error(0))?;
+        sums.resize(rect.area() as usize, SampleSum::default());
+    }
+    let mut film = Film {
+        header: FilmHeader {
+            width: settings.width,
+            height: settings.height,
+            rect,
+            samples: settings.samples(),
+            fingerprint: String::new(),
+        },
+        image,
+        sums,
+    };
     let start = Instant::now();
-    let (image, counters, threads) = if settings.threads == 0 {
-        let (image, counters) = render_tiles(scene, settings, integrator, progress, image);
-        (image, counters, rayon::current_num_threads())
+    let (counters, threads) = if settings.threads == 0 {
+        let counters = render_tiles(scene, settings, integrator, progress, &mut film);
+        (counters, rayon::current_num_threads())
     } else {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(settings.threads)
@@ -102,16 +146,18 @@ pub fn render_with<I: Integrator>(
                 threads: settings.threads,
                 message: e.to_string(),
             })?;
-        let (image, counters) =
-            pool.install(|| render_tiles(scene, settings, integrator, progress, image));
-        (image, counters, settings.threads)
+        let counters =
+            pool.install(|| render_tiles(scene, settings, integrator, progress, &mut film));
+        (counters, settings.threads)
     };
     let seconds_render = start.elapsed().as_secs_f64();
     let rays_total = counters.rays.total();
     let stats = RenderStats {
         width: settings.width,
         height: settings.height,
+        crop: [rect.x0, rect.x1, rect.y0, rect.y1],
         spp: settings.spp,
+        sample_offset: settings.sample_offset,
         integrator: settings.integrator.name().to_string(),
         max_depth: settings.max_depth,
         threads,
@@ -136,44 +182,68 @@ pub fn render_with<I: Integrator>(
         ray_trees_cut: counters.ray_trees_cut,
         implicit_searches_cut: counters.implicit_searches_cut,
     };
-    Ok((image, stats))
+    Ok((film, stats))
 }
 
-/// A tile: its top-left pixel and, row by row, the slices of the image it
-/// covers (so tiles are rendered in parallel straight into the image).
+/// A tile: its top-left pixel (in the frame) and, row by row, the slices of
+/// the film it covers (so tiles are rendered in parallel straight into it).
 struct Tile<'a> {
     x0: u32,
     y0: u32,
     rows: Vec<&'a mut [Color]>,
+    /// The rows of sums, if the film keeps them.
+    sums: Vec<&'a mut [SampleSum]>,
 }
 
-/// Renders every pixel of `image` (blank, `settings.width × settings.height`)
-/// in tiles of [`TILE_SIZE`]², in parallel.
+/// A band of tile rows: its number, its pixels and, if kept, its sums.
+type Band<'a> = (usize, &'a mut [Color], Option<&'a mut [SampleSum]>);
+
+/// Renders every pixel of `film` (blank) in tiles of [`TILE_SIZE`]², in
+/// parallel: bands of tile rows, each cut into its tiles.
 fn render_tiles<I: Integrator>(
     scene: &Scene,
     settings: &RenderSettings,
     integrator: &I,
     progress: &(dyn Fn(u64) + Sync),
-    mut image: Image,
-) -> (Image, TileCounters) {
-    let w = settings.width as usize;
+    film: &mut Film,
+) -> TileCounters {
+    let rect = film.header.rect;
+    let w = rect.width() as usize;
     let band = TILE_SIZE as usize * w;
-    let total = image
+    let sums: Box<dyn Iterator<Item = Option<&mut [SampleSum]>> + Send> = if film.sums.is_empty() {
+        Box::new(std::iter::repeat_with(|| None))
+    } else {
+        Box::new(film.sums.chunks_mut(band).map(Some))
+    };
+    let bands: Vec<Band> = film
+        .image
         .pixels
-        .par_chunks_mut(band)
+        .chunks_mut(band)
+        .zip(sums)
         .enumerate()
-        .map(|(ty, band)| {
-            // The band's rows, cut into the tiles' pieces.
+        .map(|(ty, (p, s))| (ty, p, s))
+        .collect();
+    bands
+        .into_par_iter()
+        .map(|(ty, band, sums)| {
             let mut tiles: Vec<Tile> = (0..w.div_ceil(TILE_SIZE as usize))
                 .map(|tx| Tile {
-                    x0: tx as u32 * TILE_SIZE,
-                    y0: ty as u32 * TILE_SIZE,
+                    x0: rect.x0 + tx as u32 * TILE_SIZE,
+                    y0: rect.y0 + ty as u32 * TILE_SIZE,
                     rows: Vec::with_capacity(TILE_SIZE as usize),
+                    sums: Vec::new(),
                 })
                 .collect();
             for row in band.chunks_mut(w) {
                 for (tile, piece) in tiles.iter_mut().zip(row.chunks_mut(TILE_SIZE as usize)) {
                     tile.rows.push(piece);
+                }
+            }
+            if let Some(sums) = sums {
+                for row in sums.chunks_mut(w) {
+                    for (tile, piece) in tiles.iter_mut().zip(row.chunks_mut(TILE_SIZE as usize)) {
+                        tile.sums.push(piece);
+                    }
                 }
             }
             tiles
@@ -191,8 +261,7 @@ fn render_tiles<I: Integrator>(
         .reduce(TileCounters::default, |mut a, b| {
             a += b;
             a
-        });
-    (image, total)
+        })
 }
 
 fn render_tile<I: Integrator>(
@@ -203,34 +272,36 @@ fn render_tile<I: Integrator>(
 ) -> TileCounters {
     let mut counters = Counters::default();
     let (mut bad_samples, mut nan_pixels) = (0, 0);
-    let spp = settings.spp.max(1);
+    let samples = settings.samples();
     for (dy, row) in tile.rows.iter_mut().enumerate() {
         let y = tile.y0 + dy as u32;
         for (dx, pixel) in row.iter_mut().enumerate() {
             let x = tile.x0 + dx as u32;
-            let mut rng = Pcg32::for_pixel(x, y);
-            let mut sum = Color::ZERO;
+            let mut sum = SampleSum::default();
             let mut bad = 0;
-            for s in 0..spp {
-                let (u, v) = pixel_offset(s, spp, &mut rng);
+            for index in samples.start as u64..samples.end() {
+                let (u, v) = PixelSampler::new(x, y, index as u32).pixel_offset();
                 let ray =
                     scene
                         .camera
                         .ray(x as f32 + u, y as f32 + v, settings.width, settings.height);
                 counters.rays.camera += 1;
                 let l = integrator.radiance(scene, &ray, &mut counters);
-                // Guard: no NaN or infinity reaches a pixel; count them instead.
+                // Guard: no NaN or infinity reaches a pixel; count them
+                // instead. Sums are exact and clamped, so every pixel stays
+                // finite.
                 if l.is_finite() {
-                    sum += l.max(Color::ZERO);
+                    sum.add_sample(l);
                 } else {
                     bad += 1;
                 }
             }
             bad_samples += bad;
             nan_pixels += (bad > 0) as u64;
-            // A sum of huge finite samples can overflow: clamp, as every
-            // pixel must stay finite.
-            *pixel = (sum / spp as f32).min(Color::splat(f32::MAX));
+            *pixel = sum.mean(samples.count as u64);
+            if let Some(s) = tile.sums.get_mut(dy) {
+                s[dx] = sum;
+            }
         }
     }
     TileCounters {

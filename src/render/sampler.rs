@@ -1,4 +1,6 @@
-//! Deterministic per-pixel random numbers and stratified pixel samples.
+//! Random numbers: a progressive Owen-scrambled Sobol sampler for pixel
+//! samples, seeded by (pixel, sample number), and PCG32 for everything else
+//! (tests, benchmarks).
 
 /// PCG32 (O'Neill 2014, "PCG: A Family of Simple Fast Space-Efficient
 /// Statistically Good Algorithms for Random Number Generation"), XSH-RR output.
@@ -22,12 +24,6 @@ impl Pcg32 {
         rng
     }
 
-    /// The generator for pixel `(x, y)`: the same sequence whichever thread or
-    /// tile renders the pixel (pbrt-v4 `StartPixelSample`).
-    pub fn for_pixel(x: u32, y: u32) -> Self {
-        Pcg32::new(mix64(((y as u64) << 32) | x as u64), 0x6c69_6e74)
-    }
-
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
         self.state = old.wrapping_mul(MULTIPLIER).wrapping_add(self.inc);
@@ -48,65 +44,222 @@ fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// Splits `spp` samples into a `columns × rows` grid of strata, as square as
-/// `spp`'s divisors allow (`columns ≤ rows`; a prime count gives 1 × spp strips,
-/// still stratified along one axis).
-pub fn strata(spp: u32) -> (u32, u32) {
-    let mut columns = (spp as f64).sqrt() as u32;
-    while columns > 1 && !spp.is_multiple_of(columns) {
-        columns -= 1;
-    }
-    let columns = columns.max(1);
-    (columns, spp / columns)
+/// Burley's hash-based nested uniform (Owen) scrambling of a bit-reversed
+/// value (Burley 2020, "Practical Hash-based Owen Scrambling", JCGT 9(4)):
+/// each bit of `x` is flipped by a hash of the bits below it, so the
+/// scrambled value of a bit-reversed coordinate has each digit permuted
+/// depending only on the more significant digits, as Owen (1995) asks.
+#[inline]
+fn laine_karras_permutation(mut x: u32, seed: u32) -> u32 {
+    x = x.wrapping_add(seed);
+    x ^= x.wrapping_mul(0x6c50_b47c);
+    x ^= x.wrapping_mul(0xb82f_1e52);
+    x ^= x.wrapping_mul(0xc7af_e638);
+    x ^= x.wrapping_mul(0x8d22_f6e6);
+    x
 }
 
-/// Offset within the pixel of sample `index` of `spp`: the centre for one
-/// sample; otherwise a uniformly jittered point in its stratum.
+/// Owen scrambling of a 0.32 fixed-point coordinate with `seed`.
 #[inline]
-pub fn pixel_offset(index: u32, spp: u32, rng: &mut Pcg32) -> (f32, f32) {
-    if spp == 1 {
-        return (0.5, 0.5);
+pub fn owen_scramble(x: u32, seed: u32) -> u32 {
+    laine_karras_permutation(x.reverse_bits(), seed).reverse_bits()
+}
+
+/// The first two dimensions of Sobol's sequence (Sobol 1967), as 0.32
+/// fixed-point numbers: the van der Corput radical inverse, and the dimension
+/// with primitive polynomial `x + 1`, whose direction numbers are
+/// `v₀ = 2³¹`, `vₖ = vₖ₋₁ ⊕ (vₖ₋₁ ≫ 1)`. Every aligned block of 2^m
+/// consecutive points is a (0, m, 2)-net in base 2.
+#[inline]
+pub fn sobol_2d(index: u32) -> (u32, u32) {
+    let mut y = 0;
+    let mut v = 1u32 << 31;
+    let mut i = index;
+    while i != 0 {
+        if i & 1 != 0 {
+            y ^= v;
+        }
+        i >>= 1;
+        v ^= v >> 1;
     }
-    let (columns, rows) = strata(spp);
-    let (i, j) = (index % columns, index / columns);
-    (
-        (i as f32 + rng.next_f32()) / columns as f32,
-        (j as f32 + rng.next_f32()) / rows as f32,
-    )
+    (index.reverse_bits(), y)
+}
+
+/// A 0.32 fixed-point number as an f32 in [0, 1): its top 24 bits, exactly.
+#[inline]
+fn unit_f32(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+}
+
+/// The random numbers of one sample of one pixel: a progressive Owen-scrambled
+/// Sobol sequence, seeded by the pixel and indexed by the sample's number.
+///
+/// Everything depends only on `(x, y, index)`, never on how many samples the
+/// render takes, which tile holds the pixel, or which thread renders it; so
+/// samples `0..32` and `32..64` rendered apart are exactly samples `0..64`.
+///
+/// Each pair of dimensions is a 2-D Sobol point with its own scramble, its
+/// sample order shuffled by a nested uniform scramble of the index (Burley
+/// 2020, §4; as pbrt-v4's padded Sobol sampler, but without its dependence
+/// on the sample count). The index scramble maps each aligned block of 2^m
+/// indices onto another, so any prefix of 2^m samples of a pixel is a
+/// (0, m, 2)-net in each pair of dimensions: well stratified at every count.
+#[derive(Clone, Debug)]
+pub struct PixelSampler {
+    seed: u64,
+    index: u32,
+    /// The next dimension pair to hand out (0 is the pixel offset).
+    pair: u32,
+}
+
+impl PixelSampler {
+    /// The sampler of sample `index` of pixel `(x, y)`.
+    pub fn new(x: u32, y: u32, index: u32) -> Self {
+        PixelSampler {
+            seed: mix64(((y as u64) << 32) | x as u64),
+            index,
+            pair: 1,
+        }
+    }
+
+    /// The seed of dimension pair `pair`, part `k` (0, 1: the coordinates;
+    /// 2: the index shuffle).
+    #[inline]
+    fn seed(&self, pair: u32, k: u32) -> u32 {
+        (mix64(self.seed ^ ((pair as u64) << 2 | k as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15))
+            >> 32) as u32
+    }
+
+    /// Dimension pair `pair` of this sample, as 0.32 fixed point.
+    #[inline]
+    fn pair_bits(&self, pair: u32) -> (u32, u32) {
+        let shuffled = owen_scramble(self.index, self.seed(pair, 2));
+        let (a, b) = sobol_2d(shuffled);
+        (
+            owen_scramble(a, self.seed(pair, 0)),
+            owen_scramble(b, self.seed(pair, 1)),
+        )
+    }
+
+    /// Where in the pixel the sample lies, in [0, 1)². Sample 0 is the
+    /// pixel's centre (so one sample per pixel shoots through centres, as
+    /// ray casting does): the pixel's points are digitally shifted (each
+    /// XORed with one constant) to put it there, which keeps every
+    /// (0, m, 2)-net a net.
+    pub fn pixel_offset(&self) -> (f32, f32) {
+        let (a, b) = self.pair_bits(0);
+        let (a0, b0) = if self.index == 0 {
+            (a, b)
+        } else {
+            PixelSampler {
+                index: 0,
+                ..self.clone()
+            }
+            .pair_bits(0)
+        };
+        let half = 1u32 << 31;
+        (unit_f32(a ^ a0 ^ half), unit_f32(b ^ b0 ^ half))
+    }
+
+    /// The next two dimensions, in [0, 1)².
+    pub fn next_2d(&mut self) -> (f32, f32) {
+        let (a, b) = self.pair_bits(self.pair);
+        self.pair += 1;
+        (unit_f32(a), unit_f32(b))
+    }
+
+    /// The next dimension, in [0, 1) (a pair of its own).
+    pub fn next_1d(&mut self) -> f32 {
+        self.next_2d().0
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn strata_are_as_square_as_possible() {
-        assert_eq!(strata(1), (1, 1));
-        assert_eq!(strata(4), (2, 2));
-        assert_eq!(strata(8), (2, 4));
-        assert_eq!(strata(16), (4, 4));
-        assert_eq!(strata(7), (1, 7));
-    }
-
-    #[test]
-    fn each_sample_stays_in_its_stratum() {
-        let mut rng = Pcg32::for_pixel(3, 4);
-        for s in 0..16 {
-            let (u, v) = pixel_offset(s, 16, &mut rng);
-            assert_eq!(((u * 4.0) as u32, (v * 4.0) as u32), (s % 4, s / 4));
+    /// Samples `[start, start + n)` of pixel `(x, y)`: how many fall in
+    /// each of the `n` cells of every elementary-interval shape of area 1/n.
+    fn assert_net(x: u32, y: u32, start: u32, n: u32) {
+        let points: Vec<(f32, f32)> = (start..start + n)
+            .map(|i| PixelSampler::new(x, y, i).pixel_offset())
+            .collect();
+        let m = n.trailing_zeros();
+        for j in 0..=m {
+            let (cols, rows) = (1u32 << j, 1u32 << (m - j));
+            let mut cells = vec![0u32; n as usize];
+            for &(u, v) in &points {
+                let c = (u * cols as f32) as u32 + cols * (v * rows as f32) as u32;
+                cells[c as usize] += 1;
+            }
+            assert!(
+                cells.iter().all(|&c| c == 1),
+                "samples {start}..{} of ({x},{y}) are not stratified in {cols}×{rows} cells",
+                start + n
+            );
         }
-        assert_eq!(pixel_offset(0, 1, &mut rng), (0.5, 0.5));
     }
 
     #[test]
-    fn pixel_sequences_are_reproducible_and_distinct() {
-        let a: Vec<u32> = (0..4).map(|_| Pcg32::for_pixel(5, 9).next_u32()).collect();
+    fn every_power_of_two_block_is_a_net() {
+        for (x, y) in [(0, 0), (5, 9), (1919, 1079)] {
+            for m in 0..=8 {
+                let n = 1 << m;
+                assert_net(x, y, 0, n);
+                assert_net(x, y, n, n);
+                assert_net(x, y, 3 * n, n);
+            }
+        }
+    }
+
+    #[test]
+    fn sample_zero_is_the_pixel_centre() {
+        for (x, y) in [(0, 0), (7, 3), (640, 480)] {
+            assert_eq!(PixelSampler::new(x, y, 0).pixel_offset(), (0.5, 0.5));
+        }
+        assert_ne!(PixelSampler::new(7, 3, 1).pixel_offset(), (0.5, 0.5));
+    }
+
+    #[test]
+    fn sobol_matches_the_published_sequence() {
+        let to_f = |x: u32| x as f64 / 4294967296.0;
+        let second: Vec<f64> = (0..8).map(|i| to_f(sobol_2d(i).1)).collect();
+        // Natural (not Gray-code) order: point i is the XOR of the direction
+        // numbers of i's set bits.
+        assert_eq!(second, [0.0, 0.5, 0.75, 0.25, 0.625, 0.125, 0.375, 0.875]);
+        let first: Vec<f64> = (0..4).map(|i| to_f(sobol_2d(i).0)).collect();
+        assert_eq!(first, [0.0, 0.5, 0.25, 0.75]);
+    }
+
+    #[test]
+    fn pixels_and_dimensions_are_decorrelated() {
+        let a = PixelSampler::new(1, 2, 5).pixel_offset();
+        let b = PixelSampler::new(2, 1, 5).pixel_offset();
+        assert_ne!(a, b);
+        let mut s = PixelSampler::new(1, 2, 5);
+        let (d1, d2) = (s.next_2d(), s.next_2d());
+        assert_ne!(d1, d2);
+        // Higher dimensions are uniform and stratified too.
+        let n = 256;
+        let mut cells = vec![0; 16];
+        let mut mean = 0.0;
+        for i in 0..n {
+            let mut s = PixelSampler::new(3, 4, i);
+            s.next_2d();
+            let (u, v) = s.next_2d();
+            mean += (u + v) as f64 / (2 * n) as f64;
+            cells[(u * 4.0) as usize + 4 * (v * 4.0) as usize] += 1;
+        }
+        assert!(cells.iter().all(|&c| c == 16), "{cells:?}");
+        assert!((mean - 0.5).abs() < 0.01, "{mean}");
+    }
+
+    #[test]
+    fn pcg_is_reproducible_and_uniform() {
+        let a: Vec<u32> = (0..4).map(|_| Pcg32::new(5, 9).next_u32()).collect();
         assert!(a.windows(2).all(|w| w[0] == w[1]));
-        assert_ne!(
-            Pcg32::for_pixel(5, 9).next_u32(),
-            Pcg32::for_pixel(9, 5).next_u32()
-        );
-        let mut r = Pcg32::for_pixel(0, 0);
+        assert_ne!(Pcg32::new(5, 9).next_u32(), Pcg32::new(9, 5).next_u32());
+        let mut r = Pcg32::new(0, 0);
         let mean = (0..10000).map(|_| r.next_f32() as f64).sum::<f64>() / 10000.0;
         assert!((mean - 0.5).abs() < 0.02, "{mean}");
     }

@@ -57,9 +57,14 @@ impl std::ops::AddAssign for TileCounters {
 /// What a render did and how long it took.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct RenderStats {
+    /// The frame.
     pub width: u32,
     pub height: u32,
+    /// The pixels rendered, `[x0, x1, y0, y1]` (the whole frame without a crop).
+    pub crop: [u32; 4],
+    /// Samples `sample_offset .. sample_offset + spp` of each pixel.
     pub spp: u32,
+    pub sample_offset: u32,
     pub integrator: String,
     pub max_depth: u32,
     pub threads: usize,
