@@ -5,6 +5,13 @@
 //! ([`render::render`]) into an [`render::Image`] with [`render::RenderStats`],
 //! and write it ([`render::write_image`]).
 //!
+//! To split a render across processes or machines, render crops
+//! ([`settings::RenderSettings::crop`]) and sample ranges
+//! ([`settings::RenderSettings::sample_offset`]) with
+//! [`render::render_film`], and merge the films with
+//! [`render::parts::merge`]: the result is the whole render, bit for bit.
+//! [`farm`] writes the batch scripts that run such parts on Slurm.
+//!
 //! ```
 //! use glint::{render, scene, settings::RenderSettings};
 //! let file = scene::parse_scene(scene::BUILTIN_WHITTED, "whitted.toml".as_ref()).unwrap();
@@ -15,6 +22,7 @@
 //! ```
 
 pub mod accel;
+pub mod farm;
 pub mod geometry;
 pub mod math;
 pub mod render;

@@ -297,3 +297,182 @@ fn the_command_line_renders_parts_and_merges_them() {
     assert!(e.contains("go past the last sample number"), "{e}");
     assert!(!d.join("x.exr").exists());
 }
+
+/// Runs every task of a farm's array script with bash, as Slurm would (a
+/// stand-in `sbatch` on the PATH takes the merge job's submission), then the
+/// merge script: the plain shell loop of the README's recipes.
+fn run_farm_locally(dir: &Path, script: &Path, tasks: u32) {
+    let bin = dir.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let sbatch = bin.join("sbatch");
+    std::fs::write(&sbatch, "#!/bin/sh\necho 42\n").unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&sbatch, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    for task in 0..tasks {
+        let out = Command::new("bash")
+            .arg(script)
+            .env("SLURM_ARRAY_TASK_ID", task.to_string())
+            .env("SLURM_ARRAY_JOB_ID", "41")
+            .env("SLURM_CPUS_PER_TASK", "1")
+            .env("PATH", &path)
+            .current_dir(dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "task {task}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let merge = script.with_extension("").with_extension("merge.sh");
+    let out = Command::new("bash")
+        .arg(&merge)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "merge: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn farm_scripts_render_and_merge_a_frame_and_a_sequence() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("w.toml"), BUILTIN_WHITTED).unwrap();
+    let out = glint(
+        d,
+        &[
+            "farm",
+            "slurm",
+            "w.toml",
+            "--tiles",
+            "3x2",
+            "--spp",
+            "3",
+            "--spp-chunks",
+            "2",
+            "-o",
+            "w.exr",
+            "--",
+            "--width",
+            "30",
+            "--height",
+            "20",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let script = std::path::PathBuf::from(String::from_utf8(out.stdout).unwrap().trim());
+    assert_eq!(script, d.canonicalize().unwrap().join("w.slurm.sh"));
+    let text = std::fs::read_to_string(&script).unwrap();
+    assert!(text.contains("#SBATCH --array=0-11\n"), "{text}");
+    run_farm_locally(d, &script, 12);
+    ok(
+        d,
+        "render w.toml --width 30 --height 20 --spp 3 -q -o whole.exr",
+    );
+    assert_eq!(
+        std::fs::read(d.join("w.exr")).unwrap(),
+        std::fs::read(d.join("whole.exr")).unwrap()
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("w.parts/merge.jobid")).unwrap(),
+        "42\n"
+    );
+
+    // A sequence: two frames with different cameras, one tile grid each.
+    for (frame, z) in [(7, "-6"), (8, "-5")] {
+        let scene = BUILTIN_WHITTED.replace(
+            "position = [0, 2.2, -7]",
+            &format!("position = [0, 2.2, {z}]"),
+        );
+        assert_ne!(scene, BUILTIN_WHITTED);
+        std::fs::write(d.join(format!("shot.{frame:04}.toml")), scene).unwrap();
+    }
+    let out = glint(
+        d,
+        &[
+            "farm",
+            "slurm",
+            "--frames",
+            "shot.%04d.toml",
+            "7-8",
+            "--tiles",
+            "2x1",
+            "--",
+            "--width",
+            "24",
+            "--height",
+            "16",
+            "--spp",
+            "2",
+        ],
+    );
+    assert!(!out.status.success(), "--spp after -- is refused");
+    let out = glint(
+        d,
+        &[
+            "farm",
+            "slurm",
+            "--frames",
+            "shot.%04d.toml",
+            "7-8",
+            "--tiles",
+            "2x1",
+            "--spp",
+            "2",
+            "--",
+            "--width",
+            "24",
+            "--height",
+            "16",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let script = std::path::PathBuf::from(String::from_utf8(out.stdout).unwrap().trim());
+    run_farm_locally(d, &script, 4);
+    for frame in [7, 8] {
+        ok(
+            d,
+            &format!(
+                "render shot.{frame:04}.toml --width 24 --height 16 --spp 2 -q -o f{frame}.png"
+            ),
+        );
+        assert_eq!(
+            std::fs::read(d.join(format!("shot.{frame:04}.png"))).unwrap(),
+            std::fs::read(d.join(format!("f{frame}.png"))).unwrap(),
+            "frame {frame}"
+        );
+    }
+    assert_ne!(
+        std::fs::read(d.join("f7.png")).unwrap(),
+        std::fs::read(d.join("f8.png")).unwrap()
+    );
+
+    // Errors.
+    let e = fails(d, "farm slurm --frames shot.%04d.toml 7-9");
+    assert!(e.contains("frame 9's scene"), "{e}");
+    let e = fails(d, "farm slurm --frames shot.toml 7-8");
+    assert!(e.contains("exactly one frame number"), "{e}");
+    let e = fails(d, "farm slurm w.toml --spp-chunks 2");
+    assert!(e.contains("--spp-chunks needs --spp"), "{e}");
+    let e = fails(d, "farm slurm gone.toml");
+    assert!(e.contains("scene `gone.toml` does not exist"), "{e}");
+    let e = fails(d, "farm slurm w.toml -- -o x.png");
+    assert!(e.contains("`-o` after `--` would clash"), "{e}");
+}
