@@ -19,7 +19,7 @@ pub use film::{
 };
 pub use integrator::{Counters, Integrator, MAX_RAY_TREE, Raycast, Whitted};
 pub use parts::{Film, FilmHeader, MergeError, SampleSum};
-pub use sampler::{Pcg32, PixelSampler};
+pub use sampler::{Pcg32, PixelSampler, PixelSamples};
 pub use stats::{RayCounts, RenderStats, TileCounters};
 
 use crate::math::Color;
@@ -279,8 +279,9 @@ fn render_tile<I: Integrator>(
             let x = tile.x0 + dx as u32;
             let mut sum = SampleSum::default();
             let mut bad = 0;
+            let mut pixel_samples = PixelSamples::new(x, y);
             for index in samples.start as u64..samples.end() {
-                let (u, v) = PixelSampler::new(x, y, index as u32).pixel_offset();
+                let (u, v) = pixel_samples.offset(index as u32);
                 let ray =
                     scene
                         .camera

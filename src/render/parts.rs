@@ -32,19 +32,22 @@ const SCALE: f64 = (1u64 << SUM_FRACTION_BITS) as f64;
 pub struct SampleSum(pub [u128; 3]);
 
 impl SampleSum {
-    /// Adds one sample (finite, ≥ 0; anything else counts as 0).
+    /// Adds one sample (finite, ≥ 0; anything else counts as 0). A sample
+    /// adds less than 2^95, and a pixel has at most 2^32 samples, so a sum
+    /// stays below 2^127 and cannot overflow.
     #[inline]
     pub fn add_sample(&mut self, c: Color) {
         for (s, v) in self.0.iter_mut().zip(c.to_array()) {
-            *s = s.saturating_add(quantise(v));
+            *s = s.wrapping_add(quantise(v));
         }
     }
 
-    /// Adds another sum (of other samples of the same pixel).
+    /// Adds another sum (of other samples of the same pixel; together at
+    /// most 2^32 samples, which [`plan_merge`] checks).
     #[inline]
     pub fn add(&mut self, other: &SampleSum) {
         for (s, o) in self.0.iter_mut().zip(other.0) {
-            *s = s.saturating_add(o);
+            *s = s.wrapping_add(o);
         }
     }
 
@@ -54,14 +57,24 @@ impl SampleSum {
     /// value back exactly.
     #[inline]
     pub fn mean(&self, count: u64) -> Color {
-        let n = count.max(1) as f64;
-        let m = |s: u128| ((s as f64 / SCALE) / n) as f32;
+        // Scaling by a power of two is exact, so multiplying by 2^−48 is
+        // dividing by 2^48; and dividing by 1 changes nothing.
+        let m = |s: u128| {
+            let x = to_f64(s) * (1.0 / SCALE);
+            if count <= 1 {
+                x as f32
+            } else {
+                (x / count as f64) as f32
+            }
+        };
         Color::new(m(self.0[0]), m(self.0[1]), m(self.0[2]))
     }
 }
 
-/// `v` rounded to a multiple of 2^−48, as an integer; `v` clamped to
-/// [0, [`MAX_SAMPLE_VALUE`]] first (NaN counts as 0).
+/// `v` rounded to the nearest multiple of 2^−48 (halves up), as an
+/// integer; `v` clamped to [0, [`MAX_SAMPLE_VALUE`]] first (NaN counts as
+/// 0). Conversions between floats and 128-bit integers are slow software
+/// routines, so values below 2^16 (all but the brightest) go through `u64`.
 #[inline]
 fn quantise(v: f32) -> u128 {
     let v = if v > 0.0 {
@@ -70,7 +83,32 @@ fn quantise(v: f32) -> u128 {
         0.0
     };
     // Exact: an f32 times a power of two fits an f64.
-    (v as f64 * SCALE).round() as u128
+    let x = v as f64 * SCALE;
+    const TWO_52: f64 = (1u64 << 52) as f64;
+    const TWO_64: f64 = 18_446_744_073_709_551_616.0;
+    if x < TWO_52 {
+        // x + 0.5 is exact here, and truncation rounds it down.
+        (x + 0.5) as u64 as u128
+    } else if x < TWO_64 {
+        // From 2^52 up, every f64 is a whole number.
+        x as u64 as u128
+    } else {
+        x as u128
+    }
+}
+
+/// `s` as an f64: exact to nearest below 2^64, where it goes through `u64`
+/// (a sum of samples below 2^16 each); above, as `hi·2^64 + lo` (two
+/// roundings, still one fixed function of `s`). Conversions from 128-bit
+/// integers are slow software routines, which this avoids.
+#[inline]
+fn to_f64(s: u128) -> f64 {
+    let (hi, lo) = ((s >> 64) as u64, s as u64);
+    if hi == 0 {
+        lo as f64
+    } else {
+        hi as f64 * 18_446_744_073_709_551_616.0 + lo as f64
+    }
 }
 
 /// What a film covers: the frame it belongs to, its pixels, its samples, and
@@ -371,6 +409,18 @@ mod tests {
             s
         };
         let whole = sum(0..64);
+        // The fast paths agree with the plain conversions.
+        for v in [
+            0.0f32, 1e-20, 3.0e-15, 0.3, 15.99, 16.0, 31.5, 65535.9, 65536.0, 1e9, 1.4e14,
+        ] {
+            let plain = (v.min(MAX_SAMPLE_VALUE) as f64 * SCALE).round() as u128;
+            assert_eq!(quantise(v), plain, "{v}");
+            if plain >> 64 == 0 {
+                assert_eq!(to_f64(plain), plain as f64);
+            }
+        }
+        let big = (1u128 << 100) + 12345;
+        assert!((to_f64(big) / big as f64 - 1.0).abs() < 1e-15);
         for k in [1, 17, 32, 63] {
             let mut a = sum(0..k);
             a.add(&sum(k..64));

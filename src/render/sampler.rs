@@ -65,23 +65,58 @@ pub fn owen_scramble(x: u32, seed: u32) -> u32 {
     laine_karras_permutation(x.reverse_bits(), seed).reverse_bits()
 }
 
+/// The direction numbers of Sobol's second dimension (primitive polynomial
+/// `x + 1`) as 0.32 fixed point: `v₀ = 2³¹`, `vₖ = vₖ₋₁ ⊕ (vₖ₋₁ ≫ 1)`.
+const fn sobol_directions() -> [u32; 32] {
+    let mut v = [0u32; 32];
+    let mut k = 0;
+    let mut d = 1u32 << 31;
+    while k < 32 {
+        v[k] = d;
+        d ^= d >> 1;
+        k += 1;
+    }
+    v
+}
+
+/// For each byte of an index and each of its 256 values, the XOR of the
+/// direction numbers of its set bits: four lookups give a point, instead of
+/// a loop over 32 bits (the shuffled indices use all of them).
+const SOBOL_BYTES: [[u32; 256]; 4] = {
+    let v = sobol_directions();
+    let mut t = [[0u32; 256]; 4];
+    let mut byte = 0;
+    while byte < 4 {
+        let mut value = 0;
+        while value < 256 {
+            let mut x = 0;
+            let mut bit = 0;
+            while bit < 8 {
+                if value & (1 << bit) != 0 {
+                    x ^= v[byte * 8 + bit];
+                }
+                bit += 1;
+            }
+            t[byte][value] = x;
+            value += 1;
+        }
+        byte += 1;
+    }
+    t
+};
+
 /// The first two dimensions of Sobol's sequence (Sobol 1967), as 0.32
 /// fixed-point numbers: the van der Corput radical inverse, and the dimension
-/// with primitive polynomial `x + 1`, whose direction numbers are
-/// `v₀ = 2³¹`, `vₖ = vₖ₋₁ ⊕ (vₖ₋₁ ≫ 1)`. Every aligned block of 2^m
+/// with primitive polynomial `x + 1` (point `i` is the XOR of the direction
+/// numbers of `i`'s set bits, natural order). Every aligned block of 2^m
 /// consecutive points is a (0, m, 2)-net in base 2.
 #[inline]
 pub fn sobol_2d(index: u32) -> (u32, u32) {
-    let mut y = 0;
-    let mut v = 1u32 << 31;
-    let mut i = index;
-    while i != 0 {
-        if i & 1 != 0 {
-            y ^= v;
-        }
-        i >>= 1;
-        v ^= v >> 1;
-    }
+    let [b0, b1, b2, b3] = index.to_le_bytes();
+    let y = SOBOL_BYTES[0][b0 as usize]
+        ^ SOBOL_BYTES[1][b1 as usize]
+        ^ SOBOL_BYTES[2][b2 as usize]
+        ^ SOBOL_BYTES[3][b3 as usize];
     (index.reverse_bits(), y)
 }
 
@@ -116,54 +151,21 @@ impl PixelSampler {
     /// The sampler of sample `index` of pixel `(x, y)`.
     pub fn new(x: u32, y: u32, index: u32) -> Self {
         PixelSampler {
-            seed: mix64(((y as u64) << 32) | x as u64),
+            seed: pixel_seed(x, y),
             index,
             pair: 1,
         }
     }
 
-    /// The seed of dimension pair `pair`, part `k` (0, 1: the coordinates;
-    /// 2: the index shuffle).
-    #[inline]
-    fn seed(&self, pair: u32, k: u32) -> u32 {
-        (mix64(self.seed ^ ((pair as u64) << 2 | k as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15))
-            >> 32) as u32
-    }
-
-    /// Dimension pair `pair` of this sample, as 0.32 fixed point.
-    #[inline]
-    fn pair_bits(&self, pair: u32) -> (u32, u32) {
-        let shuffled = owen_scramble(self.index, self.seed(pair, 2));
-        let (a, b) = sobol_2d(shuffled);
-        (
-            owen_scramble(a, self.seed(pair, 0)),
-            owen_scramble(b, self.seed(pair, 1)),
-        )
-    }
-
-    /// Where in the pixel the sample lies, in [0, 1)². Sample 0 is the
-    /// pixel's centre (so one sample per pixel shoots through centres, as
-    /// ray casting does): the pixel's points are digitally shifted (each
-    /// XORed with one constant) to put it there, which keeps every
-    /// (0, m, 2)-net a net.
+    /// Where in the pixel the sample lies (see [`PixelSamples::offset`]).
+    /// To take many samples of one pixel, [`PixelSamples`] is faster.
     pub fn pixel_offset(&self) -> (f32, f32) {
-        let (a, b) = self.pair_bits(0);
-        let (a0, b0) = if self.index == 0 {
-            (a, b)
-        } else {
-            PixelSampler {
-                index: 0,
-                ..self.clone()
-            }
-            .pair_bits(0)
-        };
-        let half = 1u32 << 31;
-        (unit_f32(a ^ a0 ^ half), unit_f32(b ^ b0 ^ half))
+        PixelSamples::from_seed(self.seed).offset(self.index)
     }
 
     /// The next two dimensions, in [0, 1)².
     pub fn next_2d(&mut self) -> (f32, f32) {
-        let (a, b) = self.pair_bits(self.pair);
+        let (a, b) = pair_bits(&pair_seeds(self.seed, self.pair), self.index);
         self.pair += 1;
         (unit_f32(a), unit_f32(b))
     }
@@ -172,6 +174,87 @@ impl PixelSampler {
     pub fn next_1d(&mut self) -> f32 {
         self.next_2d().0
     }
+}
+
+/// The samples of one pixel, with what they share computed once: the
+/// scrambles of the pixel-offset dimensions and the digital shift that puts
+/// sample 0 at the pixel's centre (both only when a sample other than 0 is
+/// asked for: one sample per pixel costs nothing).
+#[derive(Clone, Copy, Debug)]
+pub struct PixelSamples {
+    seed: u64,
+    /// The scrambles and the shift, once computed.
+    scrambles: Option<([u32; 3], (u32, u32))>,
+}
+
+impl PixelSamples {
+    pub fn new(x: u32, y: u32) -> Self {
+        PixelSamples::from_seed(pixel_seed(x, y))
+    }
+
+    fn from_seed(seed: u64) -> Self {
+        PixelSamples {
+            seed,
+            scrambles: None,
+        }
+    }
+
+    /// Where in the pixel sample `index` lies, in [0, 1)². Sample 0 is the
+    /// pixel's centre (so one sample per pixel shoots through centres, as
+    /// ray casting does): the pixel's points are digitally shifted (each
+    /// XORed with one constant) to put it there, which keeps every
+    /// (0, m, 2)-net a net.
+    #[inline]
+    pub fn offset(&mut self, index: u32) -> (f32, f32) {
+        if index == 0 {
+            // What the shift makes of sample 0, without computing it.
+            return (0.5, 0.5);
+        }
+        let seed = self.seed;
+        let (scrambles, shift) = *self.scrambles.get_or_insert_with(|| {
+            let scrambles = pair_seeds(seed, 0);
+            let (a0, b0) = pair_bits(&scrambles, 0);
+            let half = 1u32 << 31;
+            (scrambles, (a0 ^ half, b0 ^ half))
+        });
+        let (a, b) = pair_bits(&scrambles, index);
+        (unit_f32(a ^ shift.0), unit_f32(b ^ shift.1))
+    }
+
+    /// The sampler of sample `index`, for the dimensions after the pixel
+    /// offset.
+    pub fn sampler(&self, index: u32) -> PixelSampler {
+        PixelSampler {
+            seed: self.seed,
+            index,
+            pair: 1,
+        }
+    }
+}
+
+/// The seed of pixel `(x, y)`.
+#[inline]
+fn pixel_seed(x: u32, y: u32) -> u64 {
+    mix64(((y as u64) << 32) | x as u64)
+}
+
+/// The scrambles of dimension pair `pair` of a pixel: the two coordinates'
+/// and the index shuffle's.
+#[inline]
+fn pair_seeds(pixel: u64, pair: u32) -> [u32; 3] {
+    let seed = |k: u64| {
+        (mix64(pixel ^ ((pair as u64) << 2 | k).wrapping_mul(0x9e37_79b9_7f4a_7c15)) >> 32) as u32
+    };
+    [seed(0), seed(1), seed(2)]
+}
+
+/// A dimension pair of sample `index`, as 0.32 fixed point: the index
+/// shuffled, its 2-D Sobol point, each coordinate scrambled.
+#[inline]
+fn pair_bits(seeds: &[u32; 3], index: u32) -> (u32, u32) {
+    let shuffled = owen_scramble(index, seeds[2]);
+    let (a, b) = sobol_2d(shuffled);
+    (owen_scramble(a, seeds[0]), owen_scramble(b, seeds[1]))
 }
 
 #[cfg(test)]
@@ -214,10 +297,24 @@ mod tests {
 
     #[test]
     fn sample_zero_is_the_pixel_centre() {
+        // The shortcut for sample 0 is what the shift gives.
+        for (x, y) in [(0, 0), (7, 3), (640, 480)] {
+            let scrambles = pair_seeds(pixel_seed(x, y), 0);
+            let (a0, b0) = pair_bits(&scrambles, 0);
+            let half = 1u32 << 31;
+            let (a, b) = (a0 ^ (a0 ^ half), b0 ^ (b0 ^ half));
+            assert_eq!((unit_f32(a), unit_f32(b)), (0.5, 0.5));
+        }
         for (x, y) in [(0, 0), (7, 3), (640, 480)] {
             assert_eq!(PixelSampler::new(x, y, 0).pixel_offset(), (0.5, 0.5));
         }
         assert_ne!(PixelSampler::new(7, 3, 1).pixel_offset(), (0.5, 0.5));
+        let mut p = PixelSamples::new(7, 3);
+        for i in [0, 1, 5, 1000] {
+            assert_eq!(p.offset(i), PixelSampler::new(7, 3, i).pixel_offset());
+        }
+        let (mut a, mut b) = (p.sampler(9), PixelSampler::new(7, 3, 9));
+        assert_eq!(a.next_2d(), b.next_2d());
     }
 
     #[test]
@@ -229,6 +326,13 @@ mod tests {
         assert_eq!(second, [0.0, 0.5, 0.75, 0.25, 0.625, 0.125, 0.375, 0.875]);
         let first: Vec<f64> = (0..4).map(|i| to_f(sobol_2d(i).0)).collect();
         assert_eq!(first, [0.0, 0.5, 0.25, 0.75]);
+        // The tables agree with the bit-by-bit definition.
+        let v = sobol_directions();
+        let mut r = Pcg32::new(1, 2);
+        for i in (0..1000).chain((0..1000).map(|_| r.next_u32())) {
+            let y = (0..32).filter(|k| i >> k & 1 != 0).fold(0, |y, k| y ^ v[k]);
+            assert_eq!(sobol_2d(i).1, y, "{i}");
+        }
     }
 
     #[test]
