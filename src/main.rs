@@ -270,6 +270,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
             seconds_mesh_load,
             seconds_mesh_build,
             warnings,
+            desc,
         },
         scene_name,
         source,
@@ -286,25 +287,29 @@ fn run_render(args: RenderArgs) -> Result<()> {
             );
             (file, path.display().to_string(), source.into_bytes())
         }
-        Some(path) => {
-            let file = scene::load_scene_file(path)?;
-            let text = scene::files::read_text_file(path).map_err(|e| {
-                anyhow::anyhow!(
-                    "cannot read scene file `{}`: {}",
-                    path.display(),
-                    e.reason()
-                )
-            })?;
-            (file, path.display().to_string(), text.into_bytes())
-        }
+        Some(path) => (
+            scene::load_scene_file(path)?,
+            path.display().to_string(),
+            Vec::new(),
+        ),
         None => (
             scene::parse_scene(
                 scene::BUILTIN_WHITTED,
                 Path::new("scenes/whitted.toml (built in)"),
             )?,
             "the built-in Whitted scene".to_string(),
-            scene::BUILTIN_WHITTED.as_bytes().to_vec(),
+            Vec::new(),
         ),
+    };
+    // A scene file is fingerprinted by its description (not its text, so
+    // comments and layout do not count), without its render settings: the
+    // ones that change pixels are added below, after the command line's.
+    let source = match desc {
+        Some(mut d) => {
+            d.settings = Default::default();
+            serde_json::to_vec(&d).context("serialising the scene description")?
+        }
+        None => source,
     };
     if !args.quiet {
         for w in &warnings {

@@ -6,7 +6,8 @@
 use std::fmt;
 
 /// Which light-transport algorithm computes a pixel's radiance.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum IntegratorKind {
     /// Appel (1968): an eye ray per sample, a shadow ray per light, local shading.
     Raycast,
@@ -42,7 +43,8 @@ impl fmt::Display for IntegratorKind {
 
 /// Render settings. Defaults: 640×480, 1 sample per pixel, Whitted, depth 8,
 /// weight threshold 1e-3, all cores.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct RenderSettings {
     pub width: u32,
     pub height: u32,
@@ -152,7 +154,7 @@ pub const MAX_DEPTH: u32 = 1024;
 
 /// A rectangle of pixels, `x ∈ [x0, x1)`, `y ∈ [y0, y1)`, in the frame's
 /// coordinates (origin top left, y down).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct Rect {
     pub x0: u32,
     pub x1: u32,

@@ -4,7 +4,8 @@ use crate::math::{Color, Vec3};
 
 /// A light source. Lights are not geometry: camera and reflected rays never
 /// hit them; they are reached only by shadow rays.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase")]
 pub enum Light {
     /// Point light of radiant intensity `intensity` (per colour channel); the
     /// irradiance at distance `r` falls off as `intensity / r²`.

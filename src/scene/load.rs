@@ -25,18 +25,18 @@
 //! material = "glass"
 //! ```
 
+use super::desc::{
+    CameraDesc, ImplicitFormula, NamedMaterial, NamedSurface, ObjectDesc, Place, SceneDesc,
+    ShapeDesc, TransformDesc, check_camera, implicit_formula,
+};
 use super::files::{FileError, read_text_file};
-use super::meshio::{Model, load_mesh_file, smooth_normals};
-use super::{Camera, CheckerMode, Light, Material, MaterialKind, Object, Scene, Texture};
-use crate::geometry::implicit::{HEART_BOUNDS, HEART_FORMULA, ImplicitError, torus_formula};
-use crate::geometry::{Cuboid, Implicit, Mesh, MeshInstance, Plane, Shape, Sphere};
+use super::{CheckerMode, Light, Material, MaterialKind, Scene, Texture};
+use crate::geometry::Implicit;
+use crate::geometry::implicit::ImplicitError;
 use crate::math::{Aabb, Color, Transform, Vec3};
 use crate::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP, RenderSettings};
-use glam::DVec3;
-use std::collections::HashMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
@@ -52,8 +52,11 @@ pub struct SceneFile {
     /// Seconds spent reading mesh files and building their BVHs.
     pub seconds_mesh_load: f64,
     pub seconds_mesh_build: f64,
-    /// The mesh files' warnings (see [`Model::warnings`]).
+    /// The mesh files' warnings (see `Model::warnings`).
     pub warnings: Vec<String>,
+    /// The description the scene was built from (`None` for a scene made
+    /// from a mesh file by [`super::mesh_scene`]).
+    pub desc: Option<SceneDesc>,
 }
 
 /// Why a scene could not be loaded. Every variant names the file.
@@ -70,25 +73,79 @@ pub enum SceneError {
         column: usize,
         message: String,
     },
+    #[error("{}: {error}", path.display())]
+    Build {
+        path: PathBuf,
+        error: super::desc::DescError,
+    },
 }
 
-/// Reads and parses the scene file at `path`.
+/// Reads and parses the scene file at `path`: TOML, or (with the extension
+/// `.json`) a [`SceneDesc`] as JSON.
 pub fn load_scene_file(path: &Path) -> std::result::Result<SceneFile, SceneError> {
     let text = read_text_file(path).map_err(|reason| SceneError::Io {
         path: path.to_path_buf(),
         reason,
     })?;
-    parse_scene(&text, path)
+    let is_json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if is_json {
+        parse_scene_json(&text, path)
+    } else {
+        parse_scene(&text, path)
+    }
 }
 
-/// Parses scene-file text; `path` is used in error messages only.
+/// Parses a [`SceneDesc`] written as JSON and builds it; errors name the
+/// line and column (serde's), or the object, light or material at fault.
+pub fn parse_scene_json(text: &str, path: &Path) -> std::result::Result<SceneFile, SceneError> {
+    let desc: SceneDesc = serde_json::from_str(text).map_err(|e| SceneError::Parse {
+        path: path.to_path_buf(),
+        line: e.line(),
+        column: e.column(),
+        message: e
+            .to_string()
+            .split(" at line ")
+            .next()
+            .unwrap_or("")
+            .to_string(),
+    })?;
+    let folder = path.parent().unwrap_or(Path::new(""));
+    desc.build(folder).map_err(|e| SceneError::Build {
+        path: path.to_path_buf(),
+        error: e,
+    })
+}
+
+/// Parses scene-file text and builds the scene; `path` is used in error
+/// messages, and its folder is where relative mesh paths start.
 pub fn parse_scene(text: &str, path: &Path) -> std::result::Result<SceneFile, SceneError> {
     let ctx = Ctx { path, text };
-    let doc = DeTable::parse(text).map_err(|e| {
+    let (desc, spans) = describe(&ctx)?;
+    let folder = path.parent().unwrap_or(Path::new(""));
+    // What only the build can find (a mesh file that cannot be read, a
+    // transform made singular by a file's own) is placed at the object.
+    desc.build(folder).map_err(|e| match e.place {
+        Place::Object(i, _) => ctx.error(spans.get(i - 1).cloned().unwrap_or(0..0), e.message),
+        _ => ctx.error(0..0, e.to_string()),
+    })
+}
+
+/// Parses scene-file text into a [`SceneDesc`], without reading mesh files
+/// or building anything; `path` is used in error messages only. Every value
+/// is checked here, where errors can point at it.
+pub fn parse_scene_desc(text: &str, path: &Path) -> std::result::Result<SceneDesc, SceneError> {
+    describe(&Ctx { path, text }).map(|(desc, _)| desc)
+}
+
+/// The description, and for each object the span that build errors point at.
+fn describe(ctx: &Ctx) -> Result<(SceneDesc, Vec<Range<usize>>)> {
+    let doc = DeTable::parse(ctx.text).map_err(|e| {
         let span = e.span().unwrap_or(0..0);
         ctx.error(span, format!("invalid TOML: {}", e.message().trim()))
     })?;
-    read_document(&ctx, doc.get_ref(), doc.span())
+    read_document(ctx, doc.get_ref(), doc.span())
 }
 
 type Value<'i> = Spanned<DeValue<'i>>;
@@ -398,7 +455,11 @@ impl<'c, 'i> Fields<'c, 'i> {
     }
 }
 
-fn read_document(ctx: &Ctx, doc: &DeTable, span: Range<usize>) -> Result<SceneFile> {
+fn read_document(
+    ctx: &Ctx,
+    doc: &DeTable,
+    span: Range<usize>,
+) -> Result<(SceneDesc, Vec<Range<usize>>)> {
     let mut top = Fields::new(ctx, doc, span.start..span.start, "the scene file".into());
 
     let camera = read_camera(ctx, top.require("camera")?)?;
@@ -425,14 +486,15 @@ fn read_document(ctx: &Ctx, doc: &DeTable, span: Range<usize>) -> Result<SceneFi
         f.finish()?;
     }
 
-    let mut materials = vec![Material::default_diffuse()];
-    let mut material_index = HashMap::new();
+    let mut materials = Vec::new();
     if let Some(v) = top.get("materials") {
         let f = Fields::of(ctx, v, "[materials]".into())?;
         for (name, value) in f.table.iter() {
             let name = name.get_ref().as_ref();
-            material_index.insert(name.to_string(), materials.len() as u32);
-            materials.push(read_material(ctx, name, value)?);
+            materials.push(NamedMaterial {
+                name: name.to_string(),
+                material: read_material(ctx, name, value)?,
+            });
         }
     }
 
@@ -448,45 +510,34 @@ fn read_document(ctx: &Ctx, doc: &DeTable, span: Range<usize>) -> Result<SceneFi
     }
 
     let mut objects = Vec::new();
-    let mut cache = MeshCache::default();
+    let mut spans = Vec::new();
     if let Some(v) = top.get("object") {
+        let names: Vec<&str> = materials.iter().map(|m| m.name.as_str()).collect();
         for (i, item) in ctx
             .array(v, "an array of [[object]] tables")?
             .iter()
             .enumerate()
         {
-            objects.extend(read_object(
-                ctx,
-                item,
-                i + 1,
-                &material_index,
-                &mut materials,
-                &mut cache,
-            )?);
+            let (object, span) = read_object(ctx, item, i + 1, &names)?;
+            objects.push(object);
+            spans.push(span);
         }
     }
     top.finish()?;
 
-    let scene = Scene::new(camera, objects, materials, lights, background, ambient)
-        .map_err(|e| ctx.error(span, e.to_string()))?;
-    Ok(SceneFile {
-        scene,
+    let desc = SceneDesc {
+        camera,
         settings,
-        // Folded from +0 (an empty f64 `sum` is −0).
-        seconds_mesh_load: cache.models.values().fold(0.0, |a, m| a + m.0.seconds_load),
-        seconds_mesh_build: cache
-            .models
-            .values()
-            .fold(0.0, |a, m| a + m.0.seconds_build),
-        warnings: cache
-            .models
-            .values()
-            .flat_map(|m| m.0.warnings.iter().cloned())
-            .collect(),
-    })
+        background,
+        ambient,
+        materials,
+        lights,
+        objects,
+    };
+    Ok((desc, spans))
 }
 
-fn read_camera(ctx: &Ctx, v: &Value) -> Result<Camera> {
+fn read_camera(ctx: &Ctx, v: &Value) -> Result<CameraDesc> {
     let mut f = Fields::of(ctx, v, "[camera]".into())?;
     let position = f.req("position", Ctx::vec3)?;
     let look_at = f.req("look_at", Ctx::vec3)?;
@@ -499,12 +550,19 @@ fn read_camera(ctx: &Ctx, v: &Value) -> Result<Camera> {
     )?;
     let span = f.span.clone();
     f.finish()?;
-    Camera::try_new(position, look_at, up, fov).ok_or_else(|| {
-        ctx.error(
+    let camera = CameraDesc {
+        position,
+        look_at,
+        up,
+        fov,
+    };
+    match check_camera(&camera) {
+        Ok(_) => Ok(camera),
+        Err(_) => Err(ctx.error(
             span,
             "degenerate [camera]: `look_at` must differ from `position`, and `up` must not be parallel to the view direction",
-        )
-    })
+        )),
+    }
 }
 
 fn read_texture(ctx: &Ctx, v: &Value, what: &str) -> Result<Texture> {
@@ -631,7 +689,7 @@ fn read_light(ctx: &Ctx, v: &Value, index: usize) -> Result<Light> {
 }
 
 /// `bounds = [[x, y, z], [x, y, z]]`, min then max.
-fn read_bounds(ctx: &Ctx, v: &Value) -> Result<Aabb> {
+fn read_bounds(ctx: &Ctx, v: &Value) -> Result<[Vec3; 2]> {
     const WHAT: &str = "[[min x, y, z], [max x, y, z]]";
     let corners = ctx.array(v, WHAT)?;
     if corners.len() != 2 {
@@ -647,13 +705,13 @@ fn read_bounds(ctx: &Ctx, v: &Value) -> Result<Aabb> {
             "expected the second corner greater than the first in every coordinate",
         ));
     }
-    Ok(Aabb::new(min, max))
+    Ok([min, max])
 }
 
 /// `transform = { scale = s | [sx, sy, sz], rotate_x = deg, rotate_y = deg,
 /// rotate_z = deg, translate = [x, y, z] }`: scale, then rotate about x, y, z,
 /// then translate.
-fn read_transform(ctx: &Ctx, v: &Value) -> Result<Transform> {
+fn read_transform(ctx: &Ctx, v: &Value) -> Result<TransformDesc> {
     let mut f = Fields::of(ctx, v, "the transform".into())?;
     let scale = match f.get("scale") {
         None => Vec3::ONE,
@@ -663,24 +721,31 @@ fn read_transform(ctx: &Ctx, v: &Value) -> Result<Transform> {
         },
     };
     let any = |_: f32| true;
-    let rotate = DVec3::new(
-        f.checked("rotate_x", Some(0.0), any, "an angle in degrees")? as f64,
-        f.checked("rotate_y", Some(0.0), any, "an angle in degrees")? as f64,
-        f.checked("rotate_z", Some(0.0), any, "an angle in degrees")? as f64,
+    let rotate_deg = Vec3::new(
+        f.checked("rotate_x", Some(0.0), any, "an angle in degrees")?,
+        f.checked("rotate_y", Some(0.0), any, "an angle in degrees")?,
+        f.checked("rotate_z", Some(0.0), any, "an angle in degrees")?,
     );
     let translate = f.opt("translate", Ctx::vec3)?.unwrap_or(Vec3::ZERO);
     f.finish()?;
-    Transform::from_parts(scale.as_dvec3(), rotate, translate.as_dvec3())
-        .ok_or_else(|| ctx.error(v.span(), "the transform is singular (a scale is zero)"))
+    let desc = TransformDesc {
+        scale,
+        rotate_deg,
+        translate,
+    };
+    match desc.transform() {
+        Some(_) => Ok(desc),
+        None => Err(ctx.error(v.span(), "the transform is singular (a scale is zero)")),
+    }
 }
 
 /// An implicit surface: `f = "formula"` with `bounds`, or a named `surface`
 /// (`"torus"` with `major_radius` and `minor_radius`, or `"heart"`), whose
 /// bounds default to a box that holds it.
-fn read_implicit(ctx: &Ctx, f: &mut Fields) -> Result<Implicit> {
+fn read_implicit(ctx: &Ctx, f: &mut Fields) -> Result<ShapeDesc> {
     let surface = f.choice("surface", &["torus", "heart"])?;
     let formula_value = f.get("f");
-    let (formula, default_bounds) = match (surface, formula_value) {
+    let formula = match (surface, formula_value) {
         (Some(_), Some(v)) => {
             return Err(ctx.error(
                 v.span(),
@@ -688,36 +753,40 @@ fn read_implicit(ctx: &Ctx, f: &mut Fields) -> Result<Implicit> {
             ));
         }
         (None, None) => return Err(f.require("f").map(|_| ()).unwrap_err()),
-        (None, Some(v)) => (ctx.string(v)?.to_string(), None),
-        (Some("torus"), None) => {
-            let major = f.checked("major_radius", None, |x| x > 0.0, "a positive radius")?;
-            let minor = f.checked("minor_radius", None, |x| x > 0.0, "a positive radius")?;
-            let (a, b) = (major + minor, minor);
-            (
-                torus_formula(major as f64, minor as f64),
-                Some(Aabb::new(Vec3::new(-a, -a, -b), Vec3::new(a, a, b))),
-            )
-        }
-        (Some(_), None) => (
-            HEART_FORMULA.to_string(),
-            Some(Aabb::new(
-                Vec3::from_array(HEART_BOUNDS[0]),
-                Vec3::from_array(HEART_BOUNDS[1]),
-            )),
-        ),
+        (None, Some(v)) => ImplicitFormula::Formula(ctx.string(v)?.to_string()),
+        (Some("torus"), None) => ImplicitFormula::Named(NamedSurface::Torus {
+            major_radius: f.checked("major_radius", None, |x| x > 0.0, "a positive radius")?,
+            minor_radius: f.checked("minor_radius", None, |x| x > 0.0, "a positive radius")?,
+        }),
+        (Some(_), None) => ImplicitFormula::Named(NamedSurface::Heart),
     };
-    let bounds = match (f.opt("bounds", read_bounds)?, default_bounds) {
-        (Some(b), _) | (None, Some(b)) => b,
+    let (text, default_bounds) =
+        implicit_formula(&formula).map_err(|m| ctx.error(f.span.clone(), m))?;
+    let bounds = f.opt("bounds", read_bounds)?;
+    let aabb = match (bounds, default_bounds) {
+        (Some([min, max]), _) => Aabb::new(min, max),
+        (None, Some(b)) => b,
         (None, None) => return Err(f.require("bounds").map(|_| ()).unwrap_err()),
     };
-    let transform = f
-        .opt("transform", read_transform)?
+    let transform = f.opt("transform", read_transform)?;
+    // Compiled here (and again by the build) so that a formula's errors
+    // point at their column in the file.
+    let checked = transform
+        .as_ref()
+        .and_then(TransformDesc::transform)
         .unwrap_or(Transform::IDENTITY);
-    Implicit::new(&formula, bounds, transform).map_err(|e| match (e, formula_value) {
-        (ImplicitError::Formula(e), Some(v)) => {
-            formula_error(ctx, v, &formula, e.column, &e.message)
-        }
-        (e, _) => ctx.error(f.span.clone(), format!("in the formula of {}: {e}", f.what)),
+    if let Err(e) = Implicit::new(&text, aabb, checked) {
+        return Err(match (e, formula_value) {
+            (ImplicitError::Formula(e), Some(v)) => {
+                formula_error(ctx, v, &text, e.column, &e.message)
+            }
+            (e, _) => ctx.error(f.span.clone(), format!("in the formula of {}: {e}", f.what)),
+        });
+    }
+    Ok(ShapeDesc::Implicit {
+        formula,
+        bounds,
+        transform,
     })
 }
 
@@ -745,122 +814,23 @@ fn formula_error(ctx: &Ctx, v: &Value, formula: &str, column: usize, message: &s
     }
 }
 
-/// A model and the indices its parts' materials got in the scene's list.
-type LoadedModel = (Arc<Model>, Vec<Option<u32>>);
-
-/// Mesh files loaded so far (each is read once, however many objects use it),
-/// with the indices their materials got in the scene's material list.
-#[derive(Default)]
-struct MeshCache {
-    /// By path and whether smooth normals were asked for.
-    models: HashMap<(PathBuf, bool), LoadedModel>,
-}
-
-/// A `shape = "mesh"` object: one object per part of the file, each an
-/// instance of the file's (shared) mesh under the object's transform.
-fn read_mesh(
-    ctx: &Ctx,
-    f: &mut Fields,
-    all_materials: &mut Vec<Material>,
-    cache: &mut MeshCache,
-) -> Result<Vec<(Shape, Option<u32>)>> {
-    let file = f.require("file")?;
-    let relative = ctx.string(file)?;
-    let folder = ctx.path.parent().unwrap_or(Path::new(""));
-    let path = folder.join(relative);
-    let smooth = f.opt("smooth", |ctx, v| ctx.boolean(v))?.unwrap_or(false);
-    let key = (path.clone(), smooth);
-    let (model, material_ids) = match cache.models.get(&key) {
-        Some(entry) => entry.clone(),
-        None => {
-            let mut model = load_mesh_file(&path).map_err(|e| {
-                ctx.error(
-                    file.span(),
-                    // The mesh error names the full path that was tried.
-                    format!("cannot load mesh `{relative}`: {e}"),
-                )
-            })?;
-            if smooth {
-                // Area-weighted vertex normals for meshes that have none: in
-                // place where a mesh has one user (fresh from the file), once
-                // per mesh where parts share it (glTF nodes).
-                let mut shared: HashMap<*const Mesh, Arc<Mesh>> = HashMap::new();
-                for part in &mut model.parts {
-                    if !part.mesh.normals.is_empty() {
-                        continue;
-                    }
-                    if let Some(mesh) = Arc::get_mut(&mut part.mesh) {
-                        mesh.normals = smooth_normals(&mesh.positions, &mesh.triangles);
-                        continue;
-                    }
-                    let original = &part.mesh;
-                    part.mesh = shared
-                        .entry(Arc::as_ptr(original))
-                        .or_insert_with(|| {
-                            let mut mesh = (**original).clone();
-                            mesh.normals = smooth_normals(&mesh.positions, &mesh.triangles);
-                            Arc::new(mesh)
-                        })
-                        .clone();
-                }
-            }
-            let ids = model
-                .parts
-                .iter()
-                .map(|part| {
-                    part.material.clone().map(|m| {
-                        all_materials.push(m);
-                        all_materials.len() as u32 - 1
-                    })
-                })
-                .collect();
-            let entry = (Arc::new(model), ids);
-            cache.models.insert(key, entry.clone());
-            entry
-        }
-    };
-    let transform = f.opt("transform", read_transform)?;
-    model
-        .parts
-        .iter()
-        .zip(material_ids)
-        .map(|(part, material)| {
-            let world = match (&transform, &part.transform) {
-                (None, None) => None,
-                (Some(t), None) | (None, Some(t)) => Some(t.clone()),
-                (Some(outer), Some(inner)) => Some(
-                    Transform::from_affine(outer.world_from_object * inner.world_from_object)
-                        .ok_or_else(|| {
-                            ctx.error(f.span.clone(), "the combined transform is singular")
-                        })?,
-                ),
-            };
-            Ok((
-                Shape::Mesh(MeshInstance::new(part.mesh.clone(), world.as_ref())),
-                material,
-            ))
-        })
-        .collect()
-}
-
+/// An object, and where the build's errors about it point (a mesh's file).
 fn read_object(
     ctx: &Ctx,
     v: &Value,
     index: usize,
-    materials: &HashMap<String, u32>,
-    all_materials: &mut Vec<Material>,
-    cache: &mut MeshCache,
-) -> Result<Vec<Object>> {
+    materials: &[&str],
+) -> Result<(ObjectDesc, Range<usize>)> {
     let mut f = Fields::of(ctx, v, format!("object {index}"))?;
     let kind = f.require("shape")?;
     let kind_name = ctx.string(kind)?;
     f.what = format!("object {index} ({kind_name})");
-    let one = |shape| Ok(vec![(shape, None)]);
-    let shapes: Vec<(Shape, Option<u32>)> = match kind_name {
-        "sphere" => one(Shape::Sphere(Sphere::new(
-            f.req("center", Ctx::vec3)?,
-            f.checked("radius", None, |x| x > 0.0, "a positive radius")?,
-        ))),
+    let mut span = f.span.clone();
+    let shape = match kind_name {
+        "sphere" => ShapeDesc::Sphere {
+            center: f.req("center", Ctx::vec3)?,
+            radius: f.checked("radius", None, |x| x > 0.0, "a positive radius")?,
+        },
         "plane" => {
             let point = f.opt("point", Ctx::vec3)?.unwrap_or(Vec3::ZERO);
             let normal = match f.get("normal") {
@@ -870,7 +840,7 @@ fn read_object(
                     .ok_or_else(|| ctx.error(n.span(), "expected a non-zero normal"))?,
                 None => Vec3::Y,
             };
-            one(Shape::Plane(Plane::new(point, normal)))
+            ShapeDesc::Plane { point, normal }
         }
         "box" => {
             let min = f.req("min", Ctx::vec3)?;
@@ -882,10 +852,18 @@ fn read_object(
                     "expected `max` greater than `min` in every coordinate",
                 ));
             }
-            one(Shape::Cuboid(Cuboid::new(min, max)))
+            ShapeDesc::Box { min, max }
         }
-        "implicit" => one(Shape::Implicit(Box::new(read_implicit(ctx, &mut f)?))),
-        "mesh" => Ok(read_mesh(ctx, &mut f, all_materials, cache)?),
+        "implicit" => read_implicit(ctx, &mut f)?,
+        "mesh" => {
+            let file = f.require("file")?;
+            span = file.span();
+            ShapeDesc::Mesh {
+                file: PathBuf::from(ctx.string(file)?),
+                smooth: f.opt("smooth", |ctx, v| ctx.boolean(v))?.unwrap_or(false),
+                transform: f.opt("transform", read_transform)?,
+            }
+        }
         other => {
             return Err(ctx.error(
                 kind.span(),
@@ -894,15 +872,15 @@ fn read_object(
                 ),
             ));
         }
-    }?;
+    };
     let material = match f.get("material") {
         None => None,
-        Some(m) => Some({
+        Some(m) => {
             let name = ctx.string(m)?;
-            *materials.get(name).ok_or_else(|| {
-                let mut names: Vec<&str> = materials.keys().map(String::as_str).collect();
+            if !materials.contains(&name) {
+                let mut names = materials.to_vec();
                 names.sort_unstable();
-                ctx.error(
+                return Err(ctx.error(
                     m.span(),
                     format!(
                         "unknown material `{name}`; defined in [materials]: {}",
@@ -912,17 +890,11 @@ fn read_object(
                             names.join(", ")
                         }
                     ),
-                )
-            })?
-        }),
+                ));
+            }
+            Some(name.to_string())
+        }
     };
     f.finish()?;
-    // The object's material overrides the file's; without either, grey.
-    Ok(shapes
-        .into_iter()
-        .map(|(shape, own)| Object {
-            shape,
-            material: material.or(own).unwrap_or(0),
-        })
-        .collect())
+    Ok((ObjectDesc { shape, material }, span))
 }

@@ -11,7 +11,7 @@
 use super::Texture;
 use crate::math::{Color, Vec3};
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Material {
     /// Surface colour `C`, scaling the ambient and diffuse terms.
     pub texture: Texture,
@@ -26,7 +26,8 @@ pub struct Material {
     pub kind: MaterialKind,
 }
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase")]
 pub enum MaterialKind {
     /// Local shading only; rays that hit it end here.
     Diffuse,

@@ -113,5 +113,6 @@ pub fn mesh_scene(model: &Model, view: Vec3, up: Vec3) -> Result<SceneFile, Mesh
         seconds_mesh_load: model.seconds_load,
         seconds_mesh_build: model.seconds_build,
         warnings: model.warnings.clone(),
+        desc: None,
     })
 }

@@ -3,6 +3,7 @@
 //! queries [`Scene::occluded`] and [`Scene::transmittance`].
 
 mod camera;
+pub mod desc;
 pub mod files;
 mod light;
 mod load;
@@ -12,8 +13,12 @@ pub mod meshio;
 mod texture;
 
 pub use camera::Camera;
+pub use desc::SceneDesc;
 pub use light::Light;
-pub use load::{BUILTIN_WHITTED, SceneError, SceneFile, load_scene_file, parse_scene};
+pub use load::{
+    BUILTIN_WHITTED, SceneError, SceneFile, load_scene_file, parse_scene, parse_scene_desc,
+    parse_scene_json,
+};
 pub use material::{Fresnel, Material, MaterialKind, fresnel_dielectric, reflect, refract};
 pub use mesh_scene::{MeshSceneError, mesh_scene};
 pub use texture::{CheckerMode, Texture};

@@ -5,7 +5,8 @@ use glam::Vec2;
 
 /// Scene file: `color = [r, g, b]` or
 /// `texture = { checker = [[r, g, b], [r, g, b]], scale = 1.0, mode = "planar" }`.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Texture {
     Solid(Color),
     /// Squares of side `scale` alternating between `even` and `odd`.
@@ -18,7 +19,8 @@ pub enum Texture {
 }
 
 /// How a checkerboard is laid on a surface.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum CheckerMode {
     /// In the surface's own (u, v) coordinates: `⌊u/s⌋ + ⌊v/s⌋` even or odd.
     Planar,
