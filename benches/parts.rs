@@ -19,7 +19,11 @@ fn split(c: &mut Criterion) {
     let scene = &file.scene;
     let settings = file.settings.clone();
     let render = |s: &RenderSettings| -> Film {
-        render_film(black_box(scene), black_box(s), true, &|_| {})
+        let options = glint::render::FilmOptions {
+            keep_sums: true,
+            ..Default::default()
+        };
+        render_film(black_box(scene), black_box(s), &options, &|_| {})
             .expect("renders")
             .0
     };

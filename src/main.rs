@@ -99,6 +99,16 @@ struct RenderArgs {
     /// pixel, to merge with renders of the other samples (glint merge).
     #[arg(long, value_name = "K")]
     sample_offset: Option<u32>,
+    /// Output variables to gather, as extra EXR channels (and PNGs, see
+    /// --aov-png): depth, normal, albedo, id (object), cost (BVH nodes and
+    /// primitives tested), rays (by kind), evals (implicit-surface
+    /// evaluations).
+    #[arg(long, value_name = "NAME[,NAME…]", value_parser = glint::render::aov::parse_aovs)]
+    aov: Option<std::vec::Vec<glint::render::Aov>>,
+    /// Also write each AOV as a PNG beside the output (OUT.NAME.png): counts
+    /// and depth as heat maps with a scale bar. Implied for a .png output.
+    #[arg(long, requires = "aov")]
+    aov_png: bool,
     /// Also write the statistics as JSON to this file.
     #[arg(long, value_name = "FILE")]
     stats_json: Option<PathBuf>,
@@ -260,6 +270,20 @@ fn run_render(args: RenderArgs) -> Result<()> {
     };
     let mut image_file = stage(&output)?;
     let mut stats_file = args.stats_json.as_deref().map(stage).transpose()?;
+    let aovs = args.aov.clone().unwrap_or_default();
+    let aov_pngs = !aovs.is_empty()
+        && (args.aov_png || ImageFormat::from_path(&output) == Some(ImageFormat::Png));
+    let mut aov_files = Vec::new();
+    if aov_pngs {
+        let stem = output.with_extension("");
+        for &aov in &aovs {
+            // The pictures' names, from a 1×1 stand-in.
+            for (suffix, _) in render::heatmap::aov_pictures(aov, &[Default::default()], 1, 1) {
+                let path = PathBuf::from(format!("{}.{suffix}.png", stem.display()));
+                aov_files.push((aov, suffix, stage(&path)?));
+            }
+        }
+    }
 
     let load_start = Instant::now();
     // `source` is what the scene came from, for the parts' fingerprint.
@@ -407,16 +431,31 @@ fn run_render(args: RenderArgs) -> Result<()> {
         ProgressBar::hidden()
     };
     // An EXR keeps the exact sums, so that it can be merged with others.
-    let keep_sums = ImageFormat::from_path(&output) == Some(ImageFormat::Exr);
-    let (mut film, mut stats) = render::render_film(&scene, &settings, keep_sums, &|n| bar.inc(n))?;
+    let options = render::FilmOptions {
+        keep_sums: ImageFormat::from_path(&output) == Some(ImageFormat::Exr),
+        aovs,
+    };
+    let (mut film, mut stats) = render::render_film(&scene, &settings, &options, &|n| bar.inc(n))?;
     bar.finish_and_clear();
     stats.seconds_load = seconds_load;
     film.header.fingerprint = fingerprint;
 
     image_file.write_film(&film)?;
+    let mut outputs = vec![image_file];
+    let (w, h) = (film.image.width, film.image.height);
+    for (aov, suffix, mut file) in aov_files {
+        let pictures = render::heatmap::aov_pictures(aov, &film.aov_pixels, w, h);
+        let (_, picture) = pictures
+            .into_iter()
+            .find(|(s, _)| *s == suffix)
+            .expect("the same AOV gives the same pictures");
+        let bytes = render::png_bytes(picture.width, picture.height, &picture.rgb)
+            .map_err(|e| anyhow::anyhow!("cannot encode `{}`: {e}", file.path().display()))?;
+        file.write_bytes(&bytes)?;
+        outputs.push(file);
+    }
     drop(film);
     let report = Report::new(stats, scene.geometry_stats(), seconds_build);
-    let mut outputs = vec![image_file];
     if let Some(mut file) = stats_file.take() {
         let json = serde_json::to_string_pretty(&report).context("serialising statistics")?;
         file.write_bytes((json + "\n").as_bytes())?;

@@ -20,7 +20,11 @@ fn whitted() -> (glint::scene::Scene, RenderSettings) {
 }
 
 fn film(scene: &glint::scene::Scene, settings: &RenderSettings) -> Film {
-    render_film(scene, settings, true, &|_| {}).unwrap().0
+    let options = glint::render::FilmOptions {
+        keep_sums: true,
+        ..Default::default()
+    };
+    render_film(scene, settings, &options, &|_| {}).unwrap().0
 }
 
 /// The f32 bits of every pixel, and the sums.

@@ -303,7 +303,14 @@ impl Integrator for Broken {
 fn nan_and_infinity_never_reach_a_pixel() {
     let (file, mut settings) = whitted(32, 16);
     settings.spp = 4;
-    let (film, stats) = render_with(&file.scene, &settings, &Broken, false, &|_| {}).unwrap();
+    let (film, stats) = render_with(
+        &file.scene,
+        &settings,
+        &Broken,
+        &Default::default(),
+        &|_| {},
+    )
+    .unwrap();
     let image = film.image;
     assert!(image.pixels.iter().all(|c| c.is_finite()));
     assert!(stats.nan_pixels > 0 && stats.nan_pixels < 32 * 16);

@@ -171,6 +171,8 @@ impl StagedFile {
             },
             image: image.clone(),
             sums: Vec::new(),
+            aovs: Vec::new(),
+            aov_pixels: Vec::new(),
         })
     }
 
@@ -233,6 +235,18 @@ pub fn commit_all(files: Vec<StagedFile>) -> Result<(), ImageWriteError> {
         done.push(path);
     }
     Ok(())
+}
+
+/// An 8-bit RGB picture (row-major, three bytes per pixel) as PNG bytes.
+pub fn png_bytes(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>, String> {
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+    writer.write_image_data(rgb).map_err(|e| e.to_string())?;
+    writer.finish().map_err(|e| e.to_string())?;
+    Ok(out)
 }
 
 /// 8-bit sRGB PNG, encoded row by row (no second copy of the image).
@@ -302,6 +316,23 @@ fn write_film_exr(out: impl std::io::Write + std::io::Seek, film: &Film) -> Resu
                 channel.quantize_linearly = true;
                 channels.push(channel);
             }
+        }
+    }
+    for &aov in &film.aovs {
+        for (k, name) in aov.channels().iter().enumerate() {
+            let values = film.aov_pixels.iter().map(|p| p.value(aov, k));
+            let samples = match film.aov_pixels.first().map(|p| p.value(aov, k)) {
+                Some(super::aov::AovValue::U32(_)) => FlatSamples::U32(
+                    values
+                        .map(|v| match v {
+                            super::aov::AovValue::U32(x) => x,
+                            super::aov::AovValue::F32(x) => x as u32,
+                        })
+                        .collect(),
+                ),
+                _ => FlatSamples::F32(values.map(|v| v.as_f64() as f32).collect()),
+            };
+            channels.push(AnyChannel::new(*name, samples));
         }
     }
     let mut attributes = LayerAttributes {
@@ -512,6 +543,8 @@ pub fn read_film_exr(path: &Path) -> Result<Film, FilmReadError> {
         },
         header,
         sums,
+        aovs: Vec::new(),
+        aov_pixels: Vec::new(),
     })
 }
 

@@ -6,16 +6,19 @@
 //! whatever the number of threads, and a crop or a range of samples rendered
 //! apart is exactly that part of the whole render ([`parts`]).
 
+pub mod aov;
 mod film;
+pub mod heatmap;
 mod integrator;
 pub mod memory;
 pub mod parts;
 mod sampler;
 mod stats;
 
+pub use aov::{Aov, AovPixel};
 pub use film::{
-    FilmReadError, Image, ImageFormat, ImageWriteError, StagedFile, commit_all, read_film_exr,
-    read_film_header, srgb_encode, write_image,
+    FilmReadError, Image, ImageFormat, ImageWriteError, StagedFile, commit_all, png_bytes,
+    read_film_exr, read_film_header, srgb_encode, write_image,
 };
 pub use integrator::{Counters, Integrator, MAX_RAY_TREE, Raycast, Whitted};
 pub use parts::{Film, FilmHeader, MergeError, SampleSum};
@@ -58,20 +61,29 @@ pub fn render(
     settings: &RenderSettings,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Image, RenderStats), RenderError> {
-    render_film(scene, settings, false, progress).map(|(film, stats)| (film.image, stats))
+    render_film(scene, settings, &FilmOptions::default(), progress)
+        .map(|(film, stats)| (film.image, stats))
+}
+
+/// What a [`Film`] keeps besides the image.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FilmOptions {
+    /// The exact per-pixel sums that merging needs (48 bytes per pixel).
+    pub keep_sums: bool,
+    /// Output variables to gather (60 bytes per pixel if any).
+    pub aovs: Vec<Aov>,
 }
 
 /// [`render`] as a [`Film`], which also records the crop and the sample
-/// range, and with `keep_sums` the exact per-pixel sums that merging needs
-/// (48 more bytes per pixel).
+/// range, and keeps what `options` asks for.
 pub fn render_film(
     scene: &Scene,
     settings: &RenderSettings,
-    keep_sums: bool,
+    options: &FilmOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Film, RenderStats), RenderError> {
     match settings.integrator {
-        IntegratorKind::Raycast => render_with(scene, settings, &Raycast, keep_sums, progress),
+        IntegratorKind::Raycast => render_with(scene, settings, &Raycast, options, progress),
         IntegratorKind::Whitted => render_with(
             scene,
             settings,
@@ -79,7 +91,7 @@ pub fn render_film(
                 max_depth: settings.max_depth,
                 min_weight: settings.min_weight,
             },
-            keep_sums,
+            options,
             progress,
         ),
     }
@@ -90,15 +102,22 @@ pub fn render_with<I: Integrator>(
     scene: &Scene,
     settings: &RenderSettings,
     integrator: &I,
-    keep_sums: bool,
+    options: &FilmOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Film, RenderStats), RenderError> {
     settings.validate().map_err(RenderError::Settings)?;
+    let keep_sums = options.keep_sums;
+    let keep_aovs = !options.aovs.is_empty();
     let rect = settings.rect();
     let (width, height) = (rect.width(), rect.height());
     let per_pixel = std::mem::size_of::<Color>() as u64
         + if keep_sums {
             std::mem::size_of::<SampleSum>() as u64
+        } else {
+            0
+        }
+        + if keep_aovs {
+            std::mem::size_of::<AovPixel>() as u64
         } else {
             0
         };
@@ -123,6 +142,13 @@ pub fn render_with<I: Integrator>(
             .map_err(|_| memory_error(0))?;
         sums.resize(rect.area() as usize, SampleSum::default());
     }
+    let mut aov_pixels = Vec::new();
+    if keep_aovs {
+        aov_pixels
+            .try_reserve_exact(rect.area() as usize)
+            .map_err(|_| memory_error(0))?;
+        aov_pixels.resize(rect.area() as usize, AovPixel::default());
+    }
     let mut film = Film {
         header: FilmHeader {
             width: settings.width,
@@ -133,6 +159,8 @@ pub fn render_with<I: Integrator>(
         },
         image,
         sums,
+        aovs: options.aovs.clone(),
+        aov_pixels,
     };
     let start = Instant::now();
     let (counters, threads) = if settings.threads == 0 {
@@ -193,10 +221,20 @@ struct Tile<'a> {
     rows: Vec<&'a mut [Color]>,
     /// The rows of sums, if the film keeps them.
     sums: Vec<&'a mut [SampleSum]>,
+    /// The rows of output variables, if the film has them.
+    aovs: Vec<&'a mut [AovPixel]>,
+    /// Whether the first hit's variables are asked for.
+    first_hit: bool,
 }
 
-/// A band of tile rows: its number, its pixels and, if kept, its sums.
-type Band<'a> = (usize, &'a mut [Color], Option<&'a mut [SampleSum]>);
+/// A band of tile rows: its number, its pixels and, if kept, its sums and
+/// output variables.
+type Band<'a> = (
+    usize,
+    &'a mut [Color],
+    Option<&'a mut [SampleSum]>,
+    Option<&'a mut [AovPixel]>,
+);
 
 /// Renders every pixel of `film` (blank) in tiles of [`TILE_SIZE`]², in
 /// parallel: bands of tile rows, each cut into its tiles.
@@ -215,23 +253,33 @@ fn render_tiles<I: Integrator>(
     } else {
         Box::new(film.sums.chunks_mut(band).map(Some))
     };
+    let aovs: Box<dyn Iterator<Item = Option<&mut [AovPixel]>> + Send> =
+        if film.aov_pixels.is_empty() {
+            Box::new(std::iter::repeat_with(|| None))
+        } else {
+            Box::new(film.aov_pixels.chunks_mut(band).map(Some))
+        };
+    let first_hit = film.aovs.iter().any(|a| !a.is_count());
     let bands: Vec<Band> = film
         .image
         .pixels
         .chunks_mut(band)
         .zip(sums)
+        .zip(aovs)
         .enumerate()
-        .map(|(ty, (p, s))| (ty, p, s))
+        .map(|(ty, ((p, s), a))| (ty, p, s, a))
         .collect();
     bands
         .into_par_iter()
-        .map(|(ty, band, sums)| {
+        .map(|(ty, band, sums, aovs)| {
             let mut tiles: Vec<Tile> = (0..w.div_ceil(TILE_SIZE as usize))
                 .map(|tx| Tile {
                     x0: rect.x0 + tx as u32 * TILE_SIZE,
                     y0: rect.y0 + ty as u32 * TILE_SIZE,
                     rows: Vec::with_capacity(TILE_SIZE as usize),
                     sums: Vec::new(),
+                    aovs: Vec::new(),
+                    first_hit,
                 })
                 .collect();
             for row in band.chunks_mut(w) {
@@ -243,6 +291,13 @@ fn render_tiles<I: Integrator>(
                 for row in sums.chunks_mut(w) {
                     for (tile, piece) in tiles.iter_mut().zip(row.chunks_mut(TILE_SIZE as usize)) {
                         tile.sums.push(piece);
+                    }
+                }
+            }
+            if let Some(aovs) = aovs {
+                for row in aovs.chunks_mut(w) {
+                    for (tile, piece) in tiles.iter_mut().zip(row.chunks_mut(TILE_SIZE as usize)) {
+                        tile.aovs.push(piece);
                     }
                 }
             }
@@ -280,6 +335,8 @@ fn render_tile<I: Integrator>(
             let mut sum = SampleSum::default();
             let mut bad = 0;
             let mut pixel_samples = PixelSamples::new(x, y);
+            // The counters before the pixel, for its counting AOVs.
+            let before = (!tile.aovs.is_empty()).then_some(counters);
             for index in samples.start as u64..samples.end() {
                 let (u, v) = pixel_samples.offset(index as u32);
                 let ray =
@@ -302,6 +359,32 @@ fn render_tile<I: Integrator>(
             *pixel = sum.mean(samples.count as u64);
             if let Some(s) = tile.sums.get_mut(dy) {
                 s[dx] = sum;
+            }
+            if let (Some(row), Some(before)) = (tile.aovs.get_mut(dy), before) {
+                let a = &mut row[dx];
+                let r = &counters.rays;
+                let b = &before.rays;
+                a.rays = [
+                    r.camera - b.camera,
+                    r.shadow - b.shadow,
+                    r.reflection - b.reflection,
+                    r.refraction - b.refraction,
+                ]
+                .map(aov::count32);
+                let (t, tb) = (&counters.trace, &before.trace);
+                a.nodes = aov::count32(t.bvh.nodes_visited - tb.bvh.nodes_visited);
+                a.prims = aov::count32(t.bvh.primitive_tests - tb.bvh.primitive_tests);
+                a.evals = aov::count32(t.implicit_evaluations - tb.implicit_evaluations);
+                if tile.first_hit {
+                    let (u, v) = pixel_samples.offset(samples.start);
+                    let ray = scene.camera.ray(
+                        x as f32 + u,
+                        y as f32 + v,
+                        settings.width,
+                        settings.height,
+                    );
+                    a.first_hit(scene, &ray);
+                }
             }
         }
     }

@@ -134,6 +134,10 @@ pub struct Film {
     pub image: Image,
     /// The sums, in the same order; empty if the render did not keep them.
     pub sums: Vec<SampleSum>,
+    /// The output variables asked for, and every pixel's (in the same order;
+    /// empty without AOVs). Merging keeps the image only.
+    pub aovs: Vec<super::aov::Aov>,
+    pub aov_pixels: Vec<super::aov::AovPixel>,
 }
 
 /// Why parts cannot be merged. The message names the files.
@@ -299,6 +303,8 @@ impl Merger {
             header: self.header,
             image,
             sums: self.sums,
+            aovs: Vec::new(),
+            aov_pixels: Vec::new(),
         }
     }
 }
