@@ -1,9 +1,10 @@
 //! Whole frames of the built-in Whitted scene at 512×512, 1 spp, max depth 8 —
 //! the setting of the POV-Ray comparison in `shared/anchors` (`bench_pov.py`,
 //! case `whitted_d8`). Throughput is reported in rays (all kinds) per second.
+//! Last, the 512×512 frame with every AOV gathered.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use glint::render::render;
+use glint::render::{Aov, FilmOptions, render, render_film};
 use glint::scene::{BUILTIN_WHITTED, parse_scene};
 use glint::settings::{IntegratorKind, RenderSettings};
 use std::hint::black_box;
@@ -35,6 +36,30 @@ fn frames(c: &mut Criterion) {
             })
         });
     }
+    // The same frame with every output variable gathered: what AOVs cost
+    // (off, they cost a branch per pixel: compare whitted_512x512).
+    let settings = RenderSettings {
+        width: 512,
+        height: 512,
+        spp: 1,
+        max_depth: 8,
+        ..file.settings.clone()
+    };
+    let options = FilmOptions {
+        keep_sums: false,
+        aovs: Aov::ALL.to_vec(),
+    };
+    group.bench_function("whitted_512x512_all_aovs", |b| {
+        b.iter(|| {
+            render_film(
+                black_box(&file.scene),
+                black_box(&settings),
+                &options,
+                &|_| {},
+            )
+            .expect("renders")
+        })
+    });
     group.finish();
 }
 
