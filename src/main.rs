@@ -31,6 +31,9 @@ enum Command {
         /// The mesh file.
         mesh: PathBuf,
     },
+    /// Trace one sample of one pixel and print its ray tree: every ray, what
+    /// it hit, what it carried and what it gave the pixel.
+    Explain(ExplainArgs),
     /// Write the batch scripts that render a scene (or a sequence of frames)
     /// in parts on a cluster and merge them. Nothing is submitted.
     Farm {
@@ -121,6 +124,52 @@ struct RenderArgs {
     /// Print nothing but errors.
     #[arg(long, short)]
     quiet: bool,
+}
+
+#[derive(Args, Debug)]
+struct ExplainArgs {
+    /// Scene file (TOML or JSON), or a mesh file; the built-in Whitted scene
+    /// if omitted.
+    scene: Option<PathBuf>,
+    /// The pixel: X from the left, Y from the top, from 0 (as in the image
+    /// the same settings render).
+    #[arg(long, value_name = "X,Y", value_parser = parse_pixel)]
+    pixel: (u32, u32),
+    /// Which sample of the pixel (0 goes through its centre).
+    #[arg(long, default_value_t = 0)]
+    sample: u32,
+    /// Also write the tree as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+    /// Image width and height the pixel refers to (overrides the scene file).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    width: Option<u32>,
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    height: Option<u32>,
+    /// Light transport algorithm.
+    #[arg(long, value_enum)]
+    integrator: Option<IntegratorArg>,
+    /// Maximum recursion depth (Whitted).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=MAX_DEPTH as i64))]
+    max_depth: Option<u32>,
+    /// Rays whose weight falls below this are not traced (Whitted).
+    #[arg(long, value_parser = parse_weight)]
+    min_weight: Option<f32>,
+    /// For a mesh file as SCENE (as for render).
+    #[arg(long, value_parser = parse_vec3, default_value = "0.35,0.3,1", allow_hyphen_values = true)]
+    view: glint::math::Vec3,
+    #[arg(long, value_parser = parse_vec3, default_value = "0,1,0", allow_hyphen_values = true)]
+    up: glint::math::Vec3,
+}
+
+/// `12,34` → (12, 34).
+fn parse_pixel(s: &str) -> Result<(u32, u32), String> {
+    let err = || format!("expected a pixel X,Y of whole numbers from 0, found `{s}`");
+    let (x, y) = s.split_once(',').ok_or_else(err)?;
+    match (x.trim().parse::<u32>(), y.trim().parse::<u32>()) {
+        (Ok(x), Ok(y)) => Ok((x, y)),
+        _ => Err(err()),
+    }
 }
 
 #[derive(Subcommand, Debug)]
@@ -218,6 +267,7 @@ fn main() {
     let result = match cli.command {
         Some(Command::Render(args)) => run_render(args),
         Some(Command::Info { mesh }) => run_info(&mesh),
+        Some(Command::Explain(args)) => run_explain(args),
         Some(Command::Farm {
             engine: FarmEngine::Slurm(args),
         }) => run_farm_slurm(args),
@@ -512,6 +562,137 @@ fn peak_rss_bytes() -> Option<u64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
+}
+
+fn run_explain(args: ExplainArgs) -> Result<()> {
+    use glint::render::RayKind;
+    use glint::render::explain::{Explained, RayNode};
+    let file = match &args.scene {
+        Some(path) if is_mesh_file(path) => {
+            let model = scene::meshio::load_mesh_file(path)?;
+            scene::mesh_scene(&model, args.view, args.up)
+                .with_context(|| format!("cannot show `{}`", path.display()))?
+        }
+        Some(path) => scene::load_scene_file(path)?,
+        None => scene::parse_scene(
+            scene::BUILTIN_WHITTED,
+            Path::new("scenes/whitted.toml (built in)"),
+        )?,
+    };
+    let mut settings = file.settings.clone();
+    if let Some(w) = args.width {
+        settings.width = w;
+    }
+    if let Some(h) = args.height {
+        settings.height = h;
+    }
+    if let Some(d) = args.max_depth {
+        settings.max_depth = d;
+    }
+    if let Some(w) = args.min_weight {
+        settings.min_weight = w;
+    }
+    if let Some(i) = args.integrator {
+        settings.integrator = match i {
+            IntegratorArg::Raycast => IntegratorKind::Raycast,
+            IntegratorArg::Whitted => IntegratorKind::Whitted,
+        };
+    }
+    let mut json_file = args.json.as_deref().map(StagedFile::create).transpose()?;
+    let (x, y) = args.pixel;
+    let e: Explained = render::explain::explain(&file.scene, &settings, x, y, args.sample)
+        .map_err(|m| anyhow::anyhow!("{m}"))?;
+    // Names: materials from the description where there is one.
+    let material_name = |m: u32| -> String {
+        match (&file.desc, m) {
+            (_, 0) => "the default grey".into(),
+            (Some(d), m) if (m as usize) <= d.materials.len() => {
+                format!("`{}`", d.materials[m as usize - 1].name)
+            }
+            _ => format!("{m} (from the mesh file)"),
+        }
+    };
+    let v = |a: [f32; 3]| format!("({:.4}, {:.4}, {:.4})", a[0], a[1], a[2]);
+    let describe = |n: &RayNode| -> String {
+        let mut s = match n.kind {
+            RayKind::Camera => "camera ray".to_string(),
+            RayKind::Reflection => "reflection ray".to_string(),
+            RayKind::Refraction => "refraction ray".to_string(),
+            RayKind::Shadow => format!("shadow ray to light {}", n.light.unwrap_or(0)),
+        };
+        s += &format!(" from {} along {}", v(n.origin), v(n.direction));
+        if n.kind == RayKind::Shadow {
+            match (n.blocked_by, n.transmittance) {
+                (Some(b), _) => {
+                    let shape = file.scene.objects[b as usize - 1].shape.name();
+                    s += &format!(": blocked by object {b} ({shape})")
+                }
+                (None, Some(t)) if t == [0.0; 3] => s += ": blocked",
+                (None, Some(t)) if t == [1.0; 3] => {
+                    s += &format!(": reaches the light, brings {}", v(n.local))
+                }
+                (None, Some(t)) => {
+                    s += &format!(
+                        ": through glass (transmittance {}), brings {}",
+                        v(t),
+                        v(n.local)
+                    )
+                }
+                (None, None) => {}
+            }
+            return s;
+        }
+        match &n.hit {
+            None => s += &format!(": hits nothing, sees the background {}", v(n.local)),
+            Some(h) => {
+                s += &format!(
+                    ": hits object {} ({}{}) at t = {:.4}, point {}, {} face, material {}",
+                    h.object,
+                    h.shape,
+                    h.triangle
+                        .map(|t| format!(", triangle {t}"))
+                        .unwrap_or_default(),
+                    h.t,
+                    v(h.point),
+                    if h.front_face { "front" } else { "back" },
+                    material_name(h.material)
+                );
+                if let Some([r, t]) = n.fresnel {
+                    s += &format!("; Fresnel R = {r:.4}, T = {t:.4}");
+                }
+                s += &format!("; local term {}", v(n.local));
+            }
+        }
+        s += &format!(
+            "; throughput {}, contribution {} [{} BVH nodes, {} primitives, {} shape tests]",
+            v(n.throughput),
+            v(n.contribution),
+            n.bvh_nodes,
+            n.primitives,
+            n.intersection_tests
+        );
+        s
+    };
+    println!(
+        "Pixel ({x}, {y}), sample {}, {} integrator: radiance {}.",
+        e.sample,
+        e.integrator,
+        v(e.radiance)
+    );
+    for (i, n) in e.rays.nodes.iter().enumerate() {
+        println!("{}{}", "  ".repeat(e.rays.depth(i) + 1), describe(n));
+    }
+    println!(
+        "{} rays; the contributions of camera, reflection and refraction rays add up to {}.",
+        e.rays.nodes.len(),
+        v(e.total)
+    );
+    if let Some(mut f) = json_file.take() {
+        let json = serde_json::to_string_pretty(&e).context("serialising the ray tree")?;
+        f.write_bytes((json + "\n").as_bytes())?;
+        f.commit()?;
+    }
+    Ok(())
 }
 
 /// `path` made absolute (the tasks run in other folders, on other machines).

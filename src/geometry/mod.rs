@@ -63,6 +63,20 @@ impl TraceCounters {
         let spent = self.implicit_evaluations - before;
         self.implicit_searches_cut += (spent >= implicit::roots::MAX_SEARCH_EVALUATIONS) as u64;
     }
+
+    /// The work done since the counters were `before`.
+    pub fn since(&self, before: &TraceCounters) -> TraceCounters {
+        TraceCounters {
+            intersection_tests: self.intersection_tests - before.intersection_tests,
+            implicit_searches: self.implicit_searches - before.implicit_searches,
+            implicit_evaluations: self.implicit_evaluations - before.implicit_evaluations,
+            implicit_searches_cut: self.implicit_searches_cut - before.implicit_searches_cut,
+            bvh: TraversalCounters {
+                nodes_visited: self.bvh.nodes_visited - before.bvh.nodes_visited,
+                primitive_tests: self.bvh.primitive_tests - before.bvh.primitive_tests,
+            },
+        }
+    }
 }
 
 /// The surface at a hit point.
@@ -91,6 +105,17 @@ pub enum Shape {
 }
 
 impl Shape {
+    /// The kind, as scene files name it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Shape::Sphere(_) => "sphere",
+            Shape::Plane(_) => "plane",
+            Shape::Cuboid(_) => "box",
+            Shape::Implicit(_) => "implicit",
+            Shape::Mesh(_) => "mesh",
+        }
+    }
+
     /// The closest hit with `t ∈ [ray.t_min, ray.t_max)`.
     // Always inlined: a call would return the 20-byte `Option<ShapeHit>`
     // through memory, which costs ~10% of a Whitted frame.

@@ -7,6 +7,7 @@
 //! apart is exactly that part of the whole render ([`parts`]).
 
 pub mod aov;
+pub mod explain;
 mod film;
 pub mod heatmap;
 mod integrator;
@@ -20,7 +21,9 @@ pub use film::{
     FilmReadError, Image, ImageFormat, ImageWriteError, StagedFile, commit_all, png_bytes,
     read_film_exr, read_film_header, srgb_encode, write_image,
 };
-pub use integrator::{Counters, Integrator, MAX_RAY_TREE, Raycast, Whitted};
+pub use integrator::{
+    Counters, Integrator, MAX_RAY_TREE, NoRecord, RayKind, Raycast, Recorder, Whitted,
+};
 pub use parts::{Film, FilmHeader, MergeError, SampleSum};
 pub use sampler::{Pcg32, PixelSampler, PixelSamples};
 pub use stats::{RayCounts, RenderStats, TileCounters};
