@@ -141,6 +141,14 @@ struct ExplainArgs {
     /// Also write the tree as JSON to this file.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
+    /// Also draw the tree as an SVG, over a faint render of the scene.
+    #[arg(long, value_name = "FILE")]
+    svg: Option<PathBuf>,
+    /// Where the SVG looks from: `side` (across the camera ray, far enough
+    /// to see every ray, as the lecture draws ray trees) or `camera` (the
+    /// scene's own view).
+    #[arg(long, value_enum, default_value = "side")]
+    svg_view: SvgView,
     /// Image width and height the pixel refers to (overrides the scene file).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
     width: Option<u32>,
@@ -160,6 +168,12 @@ struct ExplainArgs {
     view: glint::math::Vec3,
     #[arg(long, value_parser = parse_vec3, default_value = "0,1,0", allow_hyphen_values = true)]
     up: glint::math::Vec3,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum SvgView {
+    Side,
+    Camera,
 }
 
 /// `12,34` → (12, 34).
@@ -599,6 +613,7 @@ fn run_explain(args: ExplainArgs) -> Result<()> {
         };
     }
     let mut json_file = args.json.as_deref().map(StagedFile::create).transpose()?;
+    let mut svg_file = args.svg.as_deref().map(StagedFile::create).transpose()?;
     let (x, y) = args.pixel;
     let e: Explained = render::explain::explain(&file.scene, &settings, x, y, args.sample)
         .map_err(|m| anyhow::anyhow!("{m}"))?;
@@ -687,11 +702,37 @@ fn run_explain(args: ExplainArgs) -> Result<()> {
         e.rays.nodes.len(),
         v(e.total)
     );
+    let mut outputs = Vec::new();
     if let Some(mut f) = json_file.take() {
         let json = serde_json::to_string_pretty(&e).context("serialising the ray tree")?;
         f.write_bytes((json + "\n").as_bytes())?;
-        f.commit()?;
+        outputs.push(f);
     }
+    if let Some(mut f) = svg_file.take() {
+        let view = match args.svg_view {
+            SvgView::Camera => file.scene.camera.clone(),
+            SvgView::Side => render::explain::side_camera(&e, &file.scene)
+                .context("cannot place a camera beside the ray tree")?,
+        };
+        // The faint background: the frame, seen from there, at one sample
+        // per pixel.
+        let quick = glint::settings::RenderSettings {
+            spp: 1,
+            sample_offset: 0,
+            crop: None,
+            ..settings.clone()
+        };
+        let mut seen = file.scene.clone();
+        seen.camera = view.clone();
+        let (image, _) = render::render(&seen, &quick, &|_| {})?;
+        drop(seen);
+        let png = render::png_bytes(image.width, image.height, &image.to_srgb8())
+            .map_err(|m| anyhow::anyhow!("cannot encode the background: {m}"))?;
+        let svg = render::explain::svg(&e, &file.scene, &view, &settings, Some(&png));
+        f.write_bytes(svg.as_bytes())?;
+        outputs.push(f);
+    }
+    render::commit_all(outputs)?;
     Ok(())
 }
 

@@ -166,6 +166,47 @@ fn the_command_line_prints_and_writes_the_tree() {
     ] {
         assert!(nodes[0].get(key).is_some(), "{key}");
     }
+    // The SVG: side view by default, the eye ringed, a line per drawn ray.
+    let out = run(&[
+        "explain", "--pixel", "430,180", "--svg", "t.svg", "--width", "160", "--height", "120",
+    ]);
+    assert!(
+        !out.status.success(),
+        "430 is outside a 160-pixel-wide image"
+    );
+    let out = run(&[
+        "explain", "--pixel", "86,36", "--svg", "t.svg", "--width", "160", "--height", "120",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let svg = std::fs::read_to_string(dir.path().join("t.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    assert!(svg.contains("data:image/png;base64,"));
+    assert!(svg.contains("<title>the eye</title>"), "{svg}");
+    assert!(svg.matches("<line").count() >= 3, "{svg}");
+    let out = run(&[
+        "explain",
+        "--pixel",
+        "86,36",
+        "--svg",
+        "c.svg",
+        "--svg-view",
+        "camera",
+        "--width",
+        "160",
+        "--height",
+        "120",
+    ]);
+    assert!(out.status.success());
+    let svg = std::fs::read_to_string(dir.path().join("c.svg")).unwrap();
+    assert!(
+        svg.contains("pixel (86, 36): the camera ray, end on"),
+        "{svg}"
+    );
+
     let out = run(&["explain", "--pixel", "800,10"]);
     assert!(!out.status.success());
     let e = String::from_utf8_lossy(&out.stderr);
@@ -175,4 +216,27 @@ fn the_command_line_prints_and_writes_the_tree() {
     );
     let out = run(&["explain", "--pixel", "8"]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("expected a pixel X,Y"));
+}
+
+#[test]
+fn the_side_view_frames_the_eye_and_every_hit() {
+    let (scene, settings) = whitted(160, 120);
+    let e = explain(&scene, &settings, 86, 36, 0).unwrap();
+    let side = glint::render::explain::side_camera(&e, &scene).unwrap();
+    let mut points = vec![scene.camera.position];
+    points.extend(e.rays.nodes.iter().filter_map(|n| {
+        n.hit
+            .as_ref()
+            .map(|h| glint::math::Vec3::from_array(h.point))
+    }));
+    assert!(points.len() >= 3);
+    for p in points {
+        let (x, y) = side
+            .project(p, 160, 120)
+            .expect("in front of the side camera");
+        assert!(
+            (0.0..160.0).contains(&x) && (0.0..120.0).contains(&y),
+            "{p:?} → {x}, {y}"
+        );
+    }
 }

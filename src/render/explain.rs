@@ -12,7 +12,7 @@
 
 use super::integrator::{Counters, Integrator, RayKind, Raycast, Recorder, Whitted};
 use super::sampler::PixelSamples;
-use crate::math::{Color, Ray};
+use crate::math::{Color, Ray, Vec3};
 use crate::scene::{Hit, Scene, TraceCounters};
 use crate::settings::{IntegratorKind, RenderSettings};
 use serde::Serialize;
@@ -48,7 +48,8 @@ pub struct RayNode {
     pub t_min: f32,
     pub t_max: f32,
     /// What it hit; `None`: nothing (a camera, reflected or refracted ray
-    /// then sees the background; a shadow ray reaches its light).
+    /// then sees the background). For a shadow ray: the opaque object that
+    /// blocked it, if one did.
     pub hit: Option<HitInfo>,
     /// Shadow rays: the light (from 1, in the scene's order), the
     /// transmittance, and the opaque object (numbered as `hit.object`) that
@@ -153,16 +154,18 @@ impl Recorder for RayTree {
 
     fn shadow(
         &mut self,
+        scene: &Scene,
         light: usize,
         ray: &Ray,
         visibility: Color,
-        blocker: Option<u32>,
+        blocker: Option<&Hit>,
         radiance: Color,
     ) {
         let mut node = self.new_node(RayKind::Shadow, ray, Color::ZERO);
         node.light = Some(light + 1);
         node.transmittance = Some(visibility.to_array());
-        node.blocked_by = blocker.map(|b| b + 1);
+        node.hit = blocker.map(|h| hit_info(scene, ray, h));
+        node.blocked_by = node.hit.as_ref().map(|h| h.object);
         node.local = radiance.to_array();
         self.nodes.push(node);
     }
@@ -262,4 +265,184 @@ pub fn explain(
         total: tree.total().to_array(),
         rays: tree,
     })
+}
+
+/// How far to draw rays that hit nothing: twice the first hit's distance
+/// from the eye.
+fn far(e: &Explained, scene: &Scene) -> f32 {
+    let first = e.rays.nodes.first().and_then(|n| n.hit.as_ref());
+    first.map_or(10.0, |h| {
+        2.0 * (Vec3::from_array(h.point) - scene.camera.position).length()
+    })
+}
+
+/// Where ray `n` is drawn to: its hit, its light, or far along it.
+fn ray_end(n: &RayNode, far: f32) -> Vec3 {
+    let (o, d) = (Vec3::from_array(n.origin), Vec3::from_array(n.direction));
+    match (&n.hit, n.kind) {
+        (Some(hit), _) => Vec3::from_array(hit.point),
+        (None, RayKind::Shadow) if n.t_max.is_finite() => o + d * n.t_max,
+        (None, _) => o + d.normalize_or_zero() * far,
+    }
+}
+
+/// A camera that sees the tree from the side (the lecture's view of a ray
+/// diagram): looking across the camera ray, from far enough that the eye and
+/// every hit fit in its field of view.
+pub fn side_camera(e: &Explained, scene: &Scene) -> Option<crate::scene::Camera> {
+    // Framed on the eye and the hits; rays that leave run off the picture.
+    let mut points = vec![scene.camera.position];
+    points.extend(
+        e.rays
+            .nodes
+            .iter()
+            .filter_map(|n| n.hit.as_ref().map(|h| Vec3::from_array(h.point))),
+    );
+    let center = points.iter().fold(Vec3::ZERO, |a, &p| a + p) / points.len() as f32;
+    let radius = points
+        .iter()
+        .map(|&p| (p - center).length())
+        .fold(0.0f32, f32::max)
+        .max(1e-3);
+    let forward = scene.camera.forward();
+    let up = if forward.cross(Vec3::Y).length() > 1e-3 {
+        Vec3::Y
+    } else {
+        Vec3::Z
+    };
+    let side = forward.cross(up).normalize();
+    let fov = 40.0f32;
+    let distance = 1.15 * radius / (fov.to_radians() * 0.5).sin();
+    crate::scene::Camera::try_new(center + side * distance, center, up, fov)
+}
+
+/// The ray tree drawn over a faint picture of the scene as `view` sees it
+/// (an SVG document): each ray a line from its origin to its hit (or, if it
+/// hits nothing, far along it), coloured by kind; hits as dots; the pixel
+/// (where the scene's camera sees its camera ray end on) as a ring when
+/// `view` is that camera, else the eye as a ring. `background` is a PNG of
+/// the frame seen by `view`, drawn at 35% opacity.
+pub fn svg(
+    e: &Explained,
+    scene: &Scene,
+    view: &crate::scene::Camera,
+    settings: &RenderSettings,
+    background: Option<&[u8]>,
+) -> String {
+    use std::fmt::Write;
+    let (w, h) = (settings.width, settings.height);
+    let cam = view;
+    let far = far(e, scene);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}">"#
+    );
+    let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="black"/>"#);
+    if let Some(png) = background {
+        use base64::Engine;
+        let data = base64::engine::general_purpose::STANDARD.encode(png);
+        let _ = writeln!(
+            s,
+            r#"<image width="{w}" height="{h}" opacity="0.35" href="data:image/png;base64,{data}"/>"#
+        );
+    }
+    for n in &e.rays.nodes {
+        let o = Vec3::from_array(n.origin);
+        let end = ray_end(n, far);
+        let (color, dash) = match n.kind {
+            RayKind::Camera => ("white", ""),
+            RayKind::Reflection => ("#4aa8ff", ""),
+            RayKind::Refraction => ("#5fe36a", ""),
+            RayKind::Shadow if n.blocked_by.is_some() => ("#ff4d4d", r#" stroke-dasharray="6 4""#),
+            RayKind::Shadow => ("#ffd84a", r#" stroke-dasharray="6 4""#),
+        };
+        if let Some(((x0, y0), (x1, y1))) = project_segment(cam, o, end, w, h) {
+            let _ = writeln!(
+                s,
+                r#"<line x1="{x0:.2}" y1="{y0:.2}" x2="{x1:.2}" y2="{y1:.2}" stroke="{color}" stroke-width="2"{dash}><title>{} ray {}</title></line>"#,
+                kind_name(n.kind),
+                n.id
+            );
+        }
+        if let Some(hit) = &n.hit
+            && let Some((x, y)) = cam.project(Vec3::from_array(hit.point), w, h)
+        {
+            let _ = writeln!(
+                s,
+                r#"<circle cx="{x:.2}" cy="{y:.2}" r="3" fill="{color}"><title>object {} ({}), t = {}</title></circle>"#,
+                hit.object, hit.shape, hit.t
+            );
+        }
+    }
+    let (ring, title) = if *view == scene.camera {
+        (
+            Some((e.pixel[0] as f32 + 0.5, e.pixel[1] as f32 + 0.5)),
+            format!(
+                "pixel ({}, {}): the camera ray, end on",
+                e.pixel[0], e.pixel[1]
+            ),
+        )
+    } else {
+        (
+            view.project(scene.camera.position, w, h),
+            "the eye".to_string(),
+        )
+    };
+    if let Some((px, py)) = ring {
+        let _ = writeln!(
+            s,
+            r#"<circle cx="{px:.2}" cy="{py:.2}" r="7" fill="none" stroke="white" stroke-width="2"><title>{title}</title></circle>"#
+        );
+    }
+    let legend = [
+        ("white", "camera"),
+        ("#4aa8ff", "reflection"),
+        ("#5fe36a", "refraction"),
+        ("#ffd84a", "shadow"),
+        ("#ff4d4d", "shadow, blocked"),
+    ];
+    for (i, (color, name)) in legend.iter().enumerate() {
+        let y = 16 + 16 * i;
+        let _ = writeln!(
+            s,
+            r#"<text x="8" y="{y}" fill="{color}" font-family="sans-serif" font-size="12">{name}</text>"#
+        );
+    }
+    s += "</svg>\n";
+    s
+}
+
+fn kind_name(k: RayKind) -> &'static str {
+    match k {
+        RayKind::Camera => "camera",
+        RayKind::Reflection => "reflection",
+        RayKind::Refraction => "refraction",
+        RayKind::Shadow => "shadow",
+    }
+}
+
+/// The segment `a`–`b` on the film, cut where it passes behind the camera.
+fn project_segment(
+    cam: &crate::scene::Camera,
+    a: Vec3,
+    b: Vec3,
+    w: u32,
+    h: u32,
+) -> Option<((f32, f32), (f32, f32))> {
+    let near = 1e-3;
+    let depth = |p: Vec3| (p - cam.position).dot(cam.forward());
+    let (za, zb) = (depth(a), depth(b));
+    if za < near && zb < near {
+        return None;
+    }
+    let cut = |p: Vec3, q: Vec3, zp: f32, zq: f32| p + (q - p) * ((near - zp) / (zq - zp));
+    let (a, b) = if za < near {
+        (cut(a, b, za, zb), b)
+    } else if zb < near {
+        (a, cut(b, a, zb, za))
+    } else {
+        (a, b)
+    };
+    Some((cam.project(a, w, h)?, cam.project(b, w, h)?))
 }

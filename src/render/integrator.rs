@@ -59,16 +59,17 @@ pub trait Recorder {
     /// What it hit (or `None`), with the work its intersection did.
     #[inline]
     fn hit(&mut self, _scene: &Scene, _ray: &Ray, _hit: Option<&Hit>, _work: TraceCounters) {}
-    /// A shadow ray to light `light`: its transmittance, the object that
-    /// blocked it (if asked for and opaque), and the radiance it brought
-    /// (its share of the local term).
+    /// A shadow ray to light `light`: its transmittance, where an opaque
+    /// object blocked it (if asked for), and the radiance it brought (its
+    /// share of the local term).
     #[inline]
     fn shadow(
         &mut self,
+        _scene: &Scene,
         _light: usize,
         _ray: &Ray,
         _visibility: Color,
-        _blocker: Option<u32>,
+        _blocker: Option<&Hit>,
         _radiance: Color,
     ) {
     }
@@ -376,8 +377,15 @@ fn local_shading<R: Recorder>(
             if R::BLOCKERS {
                 // The nearest object on the segment; opaque, as it stopped the ray.
                 let mut scratch = TraceCounters::default();
-                let blocker = scene.intersect(&shadow_ray, &mut scratch).map(|h| h.object);
-                rec.shadow(index, &shadow_ray, visibility, blocker, Color::ZERO);
+                let blocker = scene.intersect(&shadow_ray, &mut scratch);
+                rec.shadow(
+                    scene,
+                    index,
+                    &shadow_ray,
+                    visibility,
+                    blocker.as_ref(),
+                    Color::ZERO,
+                );
             }
             continue;
         }
@@ -387,7 +395,7 @@ fn local_shading<R: Recorder>(
             reflected += m.specular * n_facing.dot(h).max(0.0).powf(m.shininess);
         }
         let term = visibility * irradiance * reflected;
-        rec.shadow(index, &shadow_ray, visibility, None, term);
+        rec.shadow(scene, index, &shadow_ray, visibility, None, term);
         l += term;
     }
     l

@@ -49,6 +49,29 @@ impl Camera {
         let d = self.forward + self.right * sx + self.up * sy;
         Ray::new(self.position, d.normalize())
     }
+
+    /// Where the point `p` appears on the film of a `width × height` image,
+    /// in pixels from the top-left corner (the inverse of [`Camera::ray`]);
+    /// `None` if it is not in front of the camera.
+    pub fn project(&self, p: Vec3, width: u32, height: u32) -> Option<(f32, f32)> {
+        let rel = p - self.position;
+        let z = rel.dot(self.forward);
+        if !(z > 1e-6 * rel.length()) {
+            return None;
+        }
+        let aspect = width as f32 / height as f32;
+        let sx = rel.dot(self.right) / z / (self.tan_half_fov * aspect);
+        let sy = rel.dot(self.up) / z / self.tan_half_fov;
+        Some((
+            (sx + 1.0) * 0.5 * width as f32,
+            (1.0 - sy) * 0.5 * height as f32,
+        ))
+    }
+
+    /// The unit view direction.
+    pub fn forward(&self) -> Vec3 {
+        self.forward
+    }
 }
 
 #[cfg(test)]
@@ -65,6 +88,20 @@ mod tests {
         assert!((top.y / -top.z - 1.0).abs() < 1e-6);
         let right = c.ray(100.0, 25.0, 100, 50).d;
         assert!((right.x / -right.z - 2.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn projection_inverts_the_eye_ray() {
+        let c = Camera::try_new(Vec3::new(1.0, 2.0, -5.0), Vec3::ZERO, Vec3::Y, 40.0).unwrap();
+        for (x, y) in [(0.5, 0.5), (320.0, 240.0), (17.25, 400.75)] {
+            let r = c.ray(x, y, 640, 480);
+            let (px, py) = c.project(r.o + 7.0 * r.d, 640, 480).unwrap();
+            assert!(
+                (px - x).abs() < 1e-3 && (py - y).abs() < 1e-3,
+                "{x},{y} → {px},{py}"
+            );
+        }
+        assert_eq!(c.project(Vec3::new(1.0, 2.0, -9.0), 640, 480), None);
     }
 
     #[test]
