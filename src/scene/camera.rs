@@ -56,7 +56,7 @@ impl Camera {
     pub fn project(&self, p: Vec3, width: u32, height: u32) -> Option<(f32, f32)> {
         let rel = p - self.position;
         let z = rel.dot(self.forward);
-        if !(z > 1e-6 * rel.length()) {
+        if z.is_nan() || z <= 1e-6 * rel.length() {
             return None;
         }
         let aspect = width as f32 / height as f32;
