@@ -208,3 +208,58 @@ fn the_command_line_writes_aov_channels_and_pictures() {
         "{e}"
     );
 }
+
+/// The channels of an EXR, by name: f32 values as their bits, u32 as they are.
+fn channels(path: &Path) -> std::collections::BTreeMap<String, Vec<u32>> {
+    let image = exr::prelude::read_all_flat_layers_from_file(path).unwrap();
+    image.layer_data[0]
+        .channel_data
+        .list
+        .iter()
+        .map(|c| {
+            let v = match &c.sample_data {
+                exr::prelude::FlatSamples::U32(v) => v.clone(),
+                exr::prelude::FlatSamples::F32(v) => v.iter().map(|x| x.to_bits()).collect(),
+                exr::prelude::FlatSamples::F16(v) => v.iter().map(|x| x.to_bits() as u32).collect(),
+            };
+            (c.name.to_string(), v)
+        })
+        .collect()
+}
+
+#[test]
+fn merged_parts_keep_their_aovs() {
+    let dir = tempfile::tempdir().unwrap();
+    scene(dir.path());
+    let run = |args: &str| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_glint"))
+            .args(args.split_whitespace())
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{args}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let base = "render s.toml -q --aov cost,rays,evals,id,depth,normal,albedo";
+    run(&format!("{base} -o whole.exr"));
+    for k in 0..4 {
+        run(&format!("{base} --tiles 2x2 --tile-index {k} -o t{k}.exr"));
+    }
+    run(&format!("{base} --spp 1 -o r0.exr"));
+    run(&format!("{base} --spp 2 --sample-offset 1 -o r1.exr"));
+    // One part without AOVs: the merge keeps the image only.
+    run("render s.toml -q --spp 2 --sample-offset 1 -o plain.exr");
+    run("merge t0.exr t1.exr t2.exr t3.exr -o tiles.exr -q");
+    run("merge r1.exr r0.exr -o ranges.exr -q");
+    run("merge r0.exr plain.exr -o mixed.exr -q");
+    let whole = channels(&dir.path().join("whole.exr"));
+    assert!(whole.contains_key("cost.nodes") && whole.contains_key("N.Y"));
+    assert_eq!(channels(&dir.path().join("tiles.exr")), whole);
+    assert_eq!(channels(&dir.path().join("ranges.exr")), whole);
+    let mixed = channels(&dir.path().join("mixed.exr"));
+    assert!(!mixed.contains_key("cost.nodes") && !mixed.contains_key("Z"));
+    assert_eq!(mixed["R"], whole["R"]);
+}

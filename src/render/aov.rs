@@ -151,6 +151,46 @@ impl AovPixel {
         }
     }
 
+    /// Sets channel `k` of `aov` (the inverse of [`AovPixel::value`]; a value
+    /// of the wrong kind is converted).
+    pub fn set(&mut self, aov: Aov, k: usize, v: AovValue) {
+        let f = || match v {
+            AovValue::F32(x) => x,
+            AovValue::U32(x) => x as f32,
+        };
+        let u = || match v {
+            AovValue::U32(x) => x,
+            AovValue::F32(x) => x as u32,
+        };
+        match aov {
+            Aov::Depth => self.depth = f(),
+            Aov::Normal => self.normal[k] = f(),
+            Aov::Albedo => self.albedo[k] = f(),
+            Aov::Id => self.id = u(),
+            Aov::Cost => *[&mut self.nodes, &mut self.prims][k] = u(),
+            Aov::Rays => self.rays[k] = u(),
+            Aov::Evals => self.evals = u(),
+        }
+    }
+
+    /// Merges another part's pixel: counts add (saturating); with `first`
+    /// (the other holds the pixel's first sample), the first hit's layers
+    /// are taken from it.
+    pub fn merge(&mut self, other: &AovPixel, first: bool) {
+        self.nodes = self.nodes.saturating_add(other.nodes);
+        self.prims = self.prims.saturating_add(other.prims);
+        self.evals = self.evals.saturating_add(other.evals);
+        for (a, b) in self.rays.iter_mut().zip(other.rays) {
+            *a = a.saturating_add(b);
+        }
+        if first {
+            self.depth = other.depth;
+            self.normal = other.normal;
+            self.albedo = other.albedo;
+            self.id = other.id;
+        }
+    }
+
     /// What the first hit of `ray` (the pixel's first camera ray) shows:
     /// traced again with counters of its own, so the counting layers stay
     /// those of the render.

@@ -532,6 +532,41 @@ pub fn read_film_exr(path: &Path) -> Result<Film, FilmReadError> {
     if sums.iter().any(|s| s.0.iter().any(|&c| c >= 1 << 127)) {
         return Err(not_a_part("its sums are out of range".into()));
     }
+    // Output variables whose channels are all there, of the right kind.
+    use super::aov::{Aov, AovPixel, AovValue};
+    let mut aovs = Vec::new();
+    let mut aov_pixels: Vec<AovPixel> = Vec::new();
+    for aov in Aov::ALL {
+        let data: Option<Vec<&FlatSamples>> = aov
+            .channels()
+            .iter()
+            .map(|name| find(name).map(|c| &c.sample_data))
+            .collect();
+        let Some(data) = data else { continue };
+        let fits = data.iter().all(|d| match d {
+            FlatSamples::F32(v) => v.len() == n && !aov.is_count() && aov != Aov::Id,
+            FlatSamples::U32(v) => v.len() == n && (aov.is_count() || aov == Aov::Id),
+            FlatSamples::F16(_) => false,
+        });
+        if !fits {
+            continue;
+        }
+        if aov_pixels.is_empty() {
+            aov_pixels = vec![AovPixel::default(); n];
+        }
+        for (k, d) in data.iter().enumerate() {
+            for (i, p) in aov_pixels.iter_mut().enumerate() {
+                let v = match d {
+                    // Nothing that is not finite passes through.
+                    FlatSamples::F32(v) => AovValue::F32(if v[i].is_finite() { v[i] } else { 0.0 }),
+                    FlatSamples::U32(v) => AovValue::U32(v[i]),
+                    FlatSamples::F16(_) => continue,
+                };
+                p.set(aov, k, v);
+            }
+        }
+        aovs.push(aov);
+    }
     let pixels = (0..n)
         .map(|i| Color::new(rgb[0][i], rgb[1][i], rgb[2][i]))
         .collect();
@@ -543,8 +578,8 @@ pub fn read_film_exr(path: &Path) -> Result<Film, FilmReadError> {
         },
         header,
         sums,
-        aovs: Vec::new(),
-        aov_pixels: Vec::new(),
+        aovs,
+        aov_pixels,
     })
 }
 

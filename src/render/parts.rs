@@ -135,7 +135,7 @@ pub struct Film {
     /// The sums, in the same order; empty if the render did not keep them.
     pub sums: Vec<SampleSum>,
     /// The output variables asked for, and every pixel's (in the same order;
-    /// empty without AOVs). Merging keeps the image only.
+    /// empty without AOVs). Merging keeps the AOVs every part has.
     pub aovs: Vec<super::aov::Aov>,
     pub aov_pixels: Vec<super::aov::AovPixel>,
 }
@@ -260,10 +260,15 @@ pub fn plan_merge(parts: &[(String, FilmHeader)]) -> Result<FilmHeader, MergeErr
     })
 }
 
-/// Adds parts' sums into a film, then computes its means.
+/// Adds parts' sums into a film, then computes its means. Output variables
+/// that every part has are merged too: counts add, and the first hit's
+/// layers come from the part that holds each pixel's first sample.
 pub struct Merger {
     header: FilmHeader,
     sums: Vec<SampleSum>,
+    /// The AOVs every part added so far has (`None` before the first).
+    aovs: Option<Vec<super::aov::Aov>>,
+    aov_pixels: Vec<super::aov::AovPixel>,
 }
 
 impl Merger {
@@ -274,7 +279,12 @@ impl Merger {
         let mut sums = Vec::new();
         sums.try_reserve_exact(n).ok()?;
         sums.resize(n, SampleSum::default());
-        Some(Merger { header, sums })
+        Some(Merger {
+            header,
+            sums,
+            aovs: None,
+            aov_pixels: Vec::new(),
+        })
     }
 
     /// Adds `part`'s sums, pixel by pixel. The part must be one of those
@@ -290,6 +300,29 @@ impl Merger {
                 dst.add(s);
             }
         }
+        let kept = self.aovs.get_or_insert_with(|| part.aovs.clone());
+        kept.retain(|a| part.aovs.contains(a));
+        if kept.is_empty() || part.aov_pixels.len() != pw * r.height() as usize {
+            kept.clear();
+            return;
+        }
+        if self.aov_pixels.is_empty() {
+            let n = self.header.rect.area() as usize;
+            if self.aov_pixels.try_reserve_exact(n).is_err() {
+                kept.clear();
+                return;
+            }
+            self.aov_pixels.resize(n, Default::default());
+        }
+        let first = part.header.samples.start == self.header.samples.start;
+        for y in r.y0..r.y1 {
+            let row =
+                (y - self.header.rect.y0) as usize * w + (r.x0 - self.header.rect.x0) as usize;
+            let src = &part.aov_pixels[(y - r.y0) as usize * pw..][..pw];
+            for (dst, s) in self.aov_pixels[row..row + pw].iter_mut().zip(src) {
+                dst.merge(s, first);
+            }
+        }
     }
 
     /// The merged film; its means computed from the summed sums.
@@ -299,12 +332,18 @@ impl Merger {
         for (p, s) in image.pixels.iter_mut().zip(&self.sums) {
             *p = s.mean(count);
         }
+        let aovs = self.aovs.unwrap_or_default();
+        let aov_pixels = if aovs.is_empty() {
+            Vec::new()
+        } else {
+            self.aov_pixels
+        };
         Film {
             header: self.header,
             image,
             sums: self.sums,
-            aovs: Vec::new(),
-            aov_pixels: Vec::new(),
+            aovs,
+            aov_pixels,
         }
     }
 }
