@@ -280,7 +280,7 @@ impl SlurmJob {
             }
         }
         let mut samples = String::new();
-        if let Some(_spp) = self.spp {
+        if self.spp.is_some() {
             let _ = writeln!(s, "case \"$chunk\" in");
             for (c, (start, count)) in chunks.iter().enumerate() {
                 let _ = writeln!(s, "  {c}) offset={start}; spp={count} ;;");

@@ -341,10 +341,9 @@ fn run_render(args: RenderArgs) -> Result<()> {
     if aov_pngs {
         let stem = output.with_extension("");
         for &aov in &aovs {
-            // The pictures' names, from a 1×1 stand-in.
-            for (suffix, _) in render::heatmap::aov_pictures(aov, &[Default::default()], 1, 1) {
-                let path = PathBuf::from(format!("{}.{suffix}.png", stem.display()));
-                aov_files.push((aov, suffix, stage(&path)?));
+            for (k, name) in render::heatmap::picture_names(aov).iter().enumerate() {
+                let path = PathBuf::from(format!("{}.{name}.png", stem.display()));
+                aov_files.push((aov, k, stage(&path)?));
             }
         }
     }
@@ -507,12 +506,8 @@ fn run_render(args: RenderArgs) -> Result<()> {
     image_file.write_film(&film)?;
     let mut outputs = vec![image_file];
     let (w, h) = (film.image.width, film.image.height);
-    for (aov, suffix, mut file) in aov_files {
-        let pictures = render::heatmap::aov_pictures(aov, &film.aov_pixels, w, h);
-        let (_, picture) = pictures
-            .into_iter()
-            .find(|(s, _)| *s == suffix)
-            .expect("the same AOV gives the same pictures");
+    for (aov, k, mut file) in aov_files {
+        let picture = render::heatmap::aov_pictures(aov, &film.aov_pixels, w, h).swap_remove(k);
         let bytes = render::png_bytes(picture.width, picture.height, &picture.rgb)
             .map_err(|e| anyhow::anyhow!("cannot encode `{}`: {e}", file.path().display()))?;
         file.write_bytes(&bytes)?;
@@ -579,8 +574,7 @@ fn peak_rss_bytes() -> Option<u64> {
 }
 
 fn run_explain(args: ExplainArgs) -> Result<()> {
-    use glint::render::RayKind;
-    use glint::render::explain::{Explained, RayNode};
+    use glint::render::explain::Explained;
     let file = match &args.scene {
         Some(path) if is_mesh_file(path) => {
             let model = scene::meshio::load_mesh_file(path)?;
@@ -627,81 +621,7 @@ fn run_explain(args: ExplainArgs) -> Result<()> {
             _ => format!("{m} (from the mesh file)"),
         }
     };
-    let v = |a: [f32; 3]| format!("({:.4}, {:.4}, {:.4})", a[0], a[1], a[2]);
-    let describe = |n: &RayNode| -> String {
-        let mut s = match n.kind {
-            RayKind::Camera => "camera ray".to_string(),
-            RayKind::Reflection => "reflection ray".to_string(),
-            RayKind::Refraction => "refraction ray".to_string(),
-            RayKind::Shadow => format!("shadow ray to light {}", n.light.unwrap_or(0)),
-        };
-        s += &format!(" from {} along {}", v(n.origin), v(n.direction));
-        if n.kind == RayKind::Shadow {
-            match (n.blocked_by, n.transmittance) {
-                (Some(b), _) => {
-                    let shape = file.scene.objects[b as usize - 1].shape.name();
-                    s += &format!(": blocked by object {b} ({shape})")
-                }
-                (None, Some(t)) if t == [0.0; 3] => s += ": blocked",
-                (None, Some(t)) if t == [1.0; 3] => {
-                    s += &format!(": reaches the light, brings {}", v(n.local))
-                }
-                (None, Some(t)) => {
-                    s += &format!(
-                        ": through glass (transmittance {}), brings {}",
-                        v(t),
-                        v(n.local)
-                    )
-                }
-                (None, None) => {}
-            }
-            return s;
-        }
-        match &n.hit {
-            None => s += &format!(": hits nothing, sees the background {}", v(n.local)),
-            Some(h) => {
-                s += &format!(
-                    ": hits object {} ({}{}) at t = {:.4}, point {}, {} face, material {}",
-                    h.object,
-                    h.shape,
-                    h.triangle
-                        .map(|t| format!(", triangle {t}"))
-                        .unwrap_or_default(),
-                    h.t,
-                    v(h.point),
-                    if h.front_face { "front" } else { "back" },
-                    material_name(h.material)
-                );
-                if let Some([r, t]) = n.fresnel {
-                    s += &format!("; Fresnel R = {r:.4}, T = {t:.4}");
-                }
-                s += &format!("; local term {}", v(n.local));
-            }
-        }
-        s += &format!(
-            "; throughput {}, contribution {} [{} BVH nodes, {} primitives, {} shape tests]",
-            v(n.throughput),
-            v(n.contribution),
-            n.bvh_nodes,
-            n.primitives,
-            n.intersection_tests
-        );
-        s
-    };
-    println!(
-        "Pixel ({x}, {y}), sample {}, {} integrator: radiance {}.",
-        e.sample,
-        e.integrator,
-        v(e.radiance)
-    );
-    for (i, n) in e.rays.nodes.iter().enumerate() {
-        println!("{}{}", "  ".repeat(e.rays.depth(i) + 1), describe(n));
-    }
-    println!(
-        "{} rays; the contributions of camera, reflection and refraction rays add up to {}.",
-        e.rays.nodes.len(),
-        v(e.total)
-    );
+    print!("{}", e.text(material_name));
     let mut outputs = Vec::new();
     if let Some(mut f) = json_file.take() {
         let json = serde_json::to_string_pretty(&e).context("serialising the ray tree")?;

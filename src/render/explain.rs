@@ -223,6 +223,95 @@ pub struct Explained {
     pub rays: RayTree,
 }
 
+/// `(x, y, z)` to four decimals.
+fn v3(a: [f32; 3]) -> String {
+    format!("({:.4}, {:.4}, {:.4})", a[0], a[1], a[2])
+}
+
+impl RayNode {
+    /// One line: the ray, what it hit or what became of it, and what it
+    /// carried and gave; `material_name` names a material by its index.
+    pub fn describe(&self, material_name: &dyn Fn(u32) -> String) -> String {
+        let mut s = match self.kind {
+            RayKind::Shadow => format!("shadow ray to light {}", self.light.unwrap_or(0)),
+            kind => format!("{} ray", kind_name(kind)),
+        };
+        s += &format!(" from {} along {}", v3(self.origin), v3(self.direction));
+        if self.kind == RayKind::Shadow {
+            match (&self.hit, self.transmittance) {
+                (Some(h), _) => s += &format!(": blocked by object {} ({})", h.object, h.shape),
+                (None, Some(t)) if t == [0.0; 3] => s += ": blocked",
+                (None, Some(t)) if t == [1.0; 3] => {
+                    s += &format!(": reaches the light, brings {}", v3(self.local))
+                }
+                (None, Some(t)) => {
+                    s += &format!(
+                        ": through glass (transmittance {}), brings {}",
+                        v3(t),
+                        v3(self.local)
+                    )
+                }
+                (None, None) => {}
+            }
+            return s;
+        }
+        match &self.hit {
+            None => s += &format!(": hits nothing, sees the background {}", v3(self.local)),
+            Some(h) => {
+                s += &format!(
+                    ": hits object {} ({}{}) at t = {:.4}, point {}, {} face, material {}",
+                    h.object,
+                    h.shape,
+                    h.triangle
+                        .map(|t| format!(", triangle {t}"))
+                        .unwrap_or_default(),
+                    h.t,
+                    v3(h.point),
+                    if h.front_face { "front" } else { "back" },
+                    material_name(h.material)
+                );
+                if let Some([r, t]) = self.fresnel {
+                    s += &format!("; Fresnel R = {r:.4}, T = {t:.4}");
+                }
+                s += &format!("; local term {}", v3(self.local));
+            }
+        }
+        s + &format!(
+            "; throughput {}, contribution {} [{} BVH nodes, {} primitives, {} shape tests]",
+            v3(self.throughput),
+            v3(self.contribution),
+            self.bvh_nodes,
+            self.primitives,
+            self.intersection_tests
+        )
+    }
+}
+
+impl Explained {
+    /// The tree as text: a heading, a line per ray indented by its depth,
+    /// and the sum of the contributions.
+    pub fn text(&self, material_name: impl Fn(u32) -> String) -> String {
+        let mut s = format!(
+            "Pixel ({}, {}), sample {}, {} integrator: radiance {}.\n",
+            self.pixel[0],
+            self.pixel[1],
+            self.sample,
+            self.integrator,
+            v3(self.radiance)
+        );
+        for (i, n) in self.rays.nodes.iter().enumerate() {
+            s += &"  ".repeat(self.rays.depth(i) + 1);
+            s += &n.describe(&material_name);
+            s.push('\n');
+        }
+        s + &format!(
+            "{} rays; the contributions of camera, reflection and refraction rays add up to {}.\n",
+            self.rays.nodes.len(),
+            v3(self.total)
+        )
+    }
+}
+
 /// Traces sample `sample` of pixel `(x, y)` of the frame of `settings` with
 /// its integrator, recording the ray tree.
 pub fn explain(

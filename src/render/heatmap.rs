@@ -152,15 +152,24 @@ pub fn heat_map(values: &[f64], width: u32, height: u32) -> Picture {
     p
 }
 
-/// The pictures of `aov` over `pixels` (`width × height`): a name suffix and
-/// a picture each. Counts and depth are heat maps; normals are
+/// The names of `aov`'s pictures (`OUT.NAME.png`), in the order of
+/// [`aov_pictures`].
+pub fn picture_names(aov: Aov) -> &'static [&'static str] {
+    match aov {
+        Aov::Depth => &["depth"],
+        Aov::Normal => &["normal"],
+        Aov::Albedo => &["albedo"],
+        Aov::Id => &["id"],
+        Aov::Cost => &["cost-nodes", "cost-prims"],
+        Aov::Rays => &["rays"],
+        Aov::Evals => &["evals"],
+    }
+}
+
+/// The pictures of `aov` over `pixels` (`width × height`), one for each of
+/// its [`picture_names`]. Counts and depth are heat maps; normals are
 /// `(n + 1)/2` as colours; albedo is sRGB; ids get a colour each.
-pub fn aov_pictures(
-    aov: Aov,
-    pixels: &[AovPixel],
-    width: u32,
-    height: u32,
-) -> Vec<(String, Picture)> {
+pub fn aov_pictures(aov: Aov, pixels: &[AovPixel], width: u32, height: u32) -> Vec<Picture> {
     let heat = |f: &dyn Fn(&AovPixel) -> f64| {
         let v: Vec<f64> = pixels.iter().map(f).collect();
         heat_map(&v, width, height)
@@ -174,38 +183,26 @@ pub fn aov_pictures(
     };
     let srgb = |c: [f32; 3]| c.map(|v| (srgb_encode(v) * 255.0 + 0.5) as u8);
     match aov {
-        Aov::Depth => vec![("depth".into(), heat(&|p| p.depth as f64))],
-        Aov::Normal => vec![(
-            "normal".into(),
-            colors(&|p| {
-                normal_color(p.normal)
-                    .to_array()
-                    .map(|v| (v * 255.0 + 0.5) as u8)
-            }),
-        )],
-        Aov::Albedo => vec![("albedo".into(), colors(&|p| srgb(p.albedo)))],
-        Aov::Id => vec![(
-            "id".into(),
-            colors(&|p| {
-                if p.id == 0 {
-                    return [0; 3];
-                }
-                // A well-spread hue per id (golden-ratio steps), bright.
-                let h = (p.id as f64 * 0.618_033_988_75).fract();
-                let c = [0.0, 1.0 / 3.0, 2.0 / 3.0]
-                    .map(|o| 0.55 + 0.45 * (std::f64::consts::TAU * (h + o)).cos());
-                c.map(|v| (v * 255.0) as u8)
-            }),
-        )],
-        Aov::Cost => vec![
-            ("cost-nodes".into(), heat(&|p| p.nodes as f64)),
-            ("cost-prims".into(), heat(&|p| p.prims as f64)),
-        ],
-        Aov::Rays => vec![(
-            "rays".into(),
-            heat(&|p| p.rays.iter().map(|&r| r as f64).sum()),
-        )],
-        Aov::Evals => vec![("evals".into(), heat(&|p| p.evals as f64))],
+        Aov::Depth => vec![heat(&|p| p.depth as f64)],
+        Aov::Normal => vec![colors(&|p| {
+            normal_color(p.normal)
+                .to_array()
+                .map(|v| (v * 255.0 + 0.5) as u8)
+        })],
+        Aov::Albedo => vec![colors(&|p| srgb(p.albedo))],
+        Aov::Id => vec![colors(&|p| {
+            if p.id == 0 {
+                return [0; 3];
+            }
+            // A well-spread hue per id (golden-ratio steps), bright.
+            let h = (p.id as f64 * 0.618_033_988_75).fract();
+            let c = [0.0, 1.0 / 3.0, 2.0 / 3.0]
+                .map(|o| 0.55 + 0.45 * (std::f64::consts::TAU * (h + o)).cos());
+            c.map(|v| (v * 255.0) as u8)
+        })],
+        Aov::Cost => vec![heat(&|p| p.nodes as f64), heat(&|p| p.prims as f64)],
+        Aov::Rays => vec![heat(&|p| p.rays.iter().map(|&r| r as f64).sum())],
+        Aov::Evals => vec![heat(&|p| p.evals as f64)],
     }
 }
 
@@ -225,6 +222,14 @@ mod tests {
                 heat_color((i + 1) as f64 / 100.0),
             );
             assert!(luma(b) >= luma(a) - 1.0, "{i}: {a:?} {b:?}");
+        }
+    }
+
+    #[test]
+    fn every_aov_has_a_picture_per_name() {
+        for aov in Aov::ALL {
+            let pictures = aov_pictures(aov, &[AovPixel::default(); 6], 3, 2);
+            assert_eq!(pictures.len(), picture_names(aov).len(), "{aov:?}");
         }
     }
 

@@ -251,24 +251,13 @@ fn render_tiles<I: Integrator>(
     let rect = film.header.rect;
     let w = rect.width() as usize;
     let band = TILE_SIZE as usize * w;
-    let sums: Box<dyn Iterator<Item = Option<&mut [SampleSum]>> + Send> = if film.sums.is_empty() {
-        Box::new(std::iter::repeat_with(|| None))
-    } else {
-        Box::new(film.sums.chunks_mut(band).map(Some))
-    };
-    let aovs: Box<dyn Iterator<Item = Option<&mut [AovPixel]>> + Send> =
-        if film.aov_pixels.is_empty() {
-            Box::new(std::iter::repeat_with(|| None))
-        } else {
-            Box::new(film.aov_pixels.chunks_mut(band).map(Some))
-        };
     let first_hit = film.aovs.iter().any(|a| !a.is_count());
     let bands: Vec<Band> = film
         .image
         .pixels
         .chunks_mut(band)
-        .zip(sums)
-        .zip(aovs)
+        .zip(optional_bands(&mut film.sums, band))
+        .zip(optional_bands(&mut film.aov_pixels, band))
         .enumerate()
         .map(|(ty, ((p, s), a))| (ty, p, s, a))
         .collect();
@@ -285,24 +274,12 @@ fn render_tiles<I: Integrator>(
                     first_hit,
                 })
                 .collect();
-            for row in band.chunks_mut(w) {
-                for (tile, piece) in tiles.iter_mut().zip(row.chunks_mut(TILE_SIZE as usize)) {
-                    tile.rows.push(piece);
-                }
-            }
+            deal(band, w, &mut tiles, |t| &mut t.rows);
             if let Some(sums) = sums {
-                for row in sums.chunks_mut(w) {
-                    for (tile, piece) in tiles.iter_mut().zip(row.chunks_mut(TILE_SIZE as usize)) {
-                        tile.sums.push(piece);
-                    }
-                }
+                deal(sums, w, &mut tiles, |t| &mut t.sums);
             }
             if let Some(aovs) = aovs {
-                for row in aovs.chunks_mut(w) {
-                    for (tile, piece) in tiles.iter_mut().zip(row.chunks_mut(TILE_SIZE as usize)) {
-                        tile.aovs.push(piece);
-                    }
-                }
+                deal(aovs, w, &mut tiles, |t| &mut t.aovs);
             }
             tiles
                 .into_par_iter()
@@ -320,6 +297,31 @@ fn render_tiles<I: Integrator>(
             a += b;
             a
         })
+}
+
+/// `data` in bands of `band` elements, or `None` for every band where it is
+/// empty (a film that does not keep it).
+fn optional_bands<T>(data: &mut [T], band: usize) -> impl Iterator<Item = Option<&mut [T]>> {
+    let kept = (!data.is_empty()).then_some(data);
+    kept.into_iter()
+        .flat_map(move |d| d.chunks_mut(band))
+        .map(Some)
+        .chain(std::iter::repeat_with(|| None))
+}
+
+/// Cuts a band's rows (`w` wide) into the tiles' pieces, each tile's going
+/// to the list `slot` picks.
+fn deal<'a, T>(
+    band: &'a mut [T],
+    w: usize,
+    tiles: &mut [Tile<'a>],
+    slot: impl for<'t> Fn(&'t mut Tile<'a>) -> &'t mut Vec<&'a mut [T]>,
+) {
+    for row in band.chunks_mut(w) {
+        for (tile, piece) in tiles.iter_mut().zip(row.chunks_mut(TILE_SIZE as usize)) {
+            slot(tile).push(piece);
+        }
+    }
 }
 
 fn render_tile<I: Integrator>(
