@@ -24,7 +24,9 @@
 pub mod accel;
 pub mod farm;
 pub mod geometry;
+pub mod light;
 pub mod math;
 pub mod render;
 pub mod scene;
 pub mod settings;
+pub mod shading;

@@ -4,7 +4,9 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glint::render::{self, ImageFormat, RenderStats, StagedFile};
 use glint::scene::{self, GeometryStats, SceneFile};
-use glint::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP, Rect};
+use glint::settings::{
+    IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_LIGHT_SAMPLES, MAX_SPP, Rect,
+};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -75,18 +77,23 @@ struct RenderArgs {
     /// Samples per pixel (1: through pixel centres; more: stratified, jittered).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_SPP as i64))]
     spp: Option<u32>,
-    /// Maximum recursion depth (Whitted).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=MAX_DEPTH as i64))]
-    max_depth: Option<u32>,
+    /// Maximum recursion depth: bounces after the camera ray (−1: no limit;
+    /// path tracing then ends paths by Russian roulette).
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(i32).range(-1..=MAX_DEPTH as i64))]
+    max_depth: Option<i32>,
+    /// Shadow rays per shading point to the area lights (Whitted and ray
+    /// casting; soft shadows).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=MAX_LIGHT_SAMPLES as i64))]
+    light_samples: Option<u32>,
     /// Rays whose weight falls below this are not traced (Whitted).
     #[arg(long, value_parser = parse_weight)]
     min_weight: Option<f32>,
     /// Worker threads (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
     threads: Option<u32>,
-    /// Light transport algorithm.
-    #[arg(long, value_enum)]
-    integrator: Option<IntegratorArg>,
+    /// Light transport algorithm: raycast, whitted or path.
+    #[arg(long, value_parser = parse_integrator)]
+    integrator: Option<IntegratorKind>,
     /// Render only the pixels x ∈ [X0, X1), y ∈ [Y0, Y1) of the frame
     /// (an EXR keeps the frame as its display window).
     #[arg(long, value_name = "X0,X1,Y0,Y1", conflicts_with = "tiles")]
@@ -154,12 +161,17 @@ struct ExplainArgs {
     width: Option<u32>,
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
     height: Option<u32>,
-    /// Light transport algorithm.
-    #[arg(long, value_enum)]
-    integrator: Option<IntegratorArg>,
-    /// Maximum recursion depth (Whitted).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=MAX_DEPTH as i64))]
-    max_depth: Option<u32>,
+    /// Light transport algorithm: raycast, whitted or path.
+    #[arg(long, value_parser = parse_integrator)]
+    integrator: Option<IntegratorKind>,
+    /// Maximum recursion depth: bounces after the camera ray (−1: no limit;
+    /// path tracing then ends paths by Russian roulette).
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(i32).range(-1..=MAX_DEPTH as i64))]
+    max_depth: Option<i32>,
+    /// Shadow rays per shading point to the area lights (Whitted and ray
+    /// casting; soft shadows).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=MAX_LIGHT_SAMPLES as i64))]
+    light_samples: Option<u32>,
     /// Rays whose weight falls below this are not traced (Whitted).
     #[arg(long, value_parser = parse_weight)]
     min_weight: Option<f32>,
@@ -232,10 +244,8 @@ struct SlurmArgs {
     render_args: Vec<String>,
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum IntegratorArg {
-    Raycast,
-    Whitted,
+fn parse_integrator(s: &str) -> Result<IntegratorKind, String> {
+    s.parse()
 }
 
 /// Whether SCENE names a mesh file rather than a scene file.
@@ -428,10 +438,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
         settings.threads = t as usize;
     }
     if let Some(i) = args.integrator {
-        settings.integrator = match i {
-            IntegratorArg::Raycast => IntegratorKind::Raycast,
-            IntegratorArg::Whitted => IntegratorKind::Whitted,
-        };
+        settings.integrator = i;
+    }
+    if let Some(n) = args.light_samples {
+        settings.light_samples = n;
     }
     settings.crop = args.crop;
     if let (Some((n, m)), Some(k)) = (args.tiles, args.tile_index) {
@@ -601,10 +611,10 @@ fn run_explain(args: ExplainArgs) -> Result<()> {
         settings.min_weight = w;
     }
     if let Some(i) = args.integrator {
-        settings.integrator = match i {
-            IntegratorArg::Raycast => IntegratorKind::Raycast,
-            IntegratorArg::Whitted => IntegratorKind::Whitted,
-        };
+        settings.integrator = i;
+    }
+    if let Some(n) = args.light_samples {
+        settings.light_samples = n;
     }
     let mut json_file = args.json.as_deref().map(StagedFile::create).transpose()?;
     let mut svg_file = args.svg.as_deref().map(StagedFile::create).transpose()?;

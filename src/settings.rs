@@ -14,24 +14,43 @@ pub enum IntegratorKind {
     /// Whitted (1979): ray casting plus recursive reflected and refracted rays.
     #[default]
     Whitted,
+    /// Path tracing (Kajiya 1986) with next-event estimation and multiple
+    /// importance sampling: soft shadows, glossy reflection, indirect light.
+    Path,
 }
 
 impl IntegratorKind {
-    pub const NAMES: [&'static str; 2] = ["raycast", "whitted"];
+    /// Every integrator, in the order of [`IntegratorKind::NAMES`].
+    pub const ALL: [IntegratorKind; 3] = [
+        IntegratorKind::Raycast,
+        IntegratorKind::Whitted,
+        IntegratorKind::Path,
+    ];
+    /// The names the scene file and the command line use.
+    pub const NAMES: [&'static str; 3] = ["raycast", "whitted", "path"];
 
     pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "raycast" => Some(IntegratorKind::Raycast),
-            "whitted" => Some(IntegratorKind::Whitted),
-            _ => None,
-        }
+        Self::NAMES
+            .iter()
+            .position(|n| *n == name)
+            .map(|i| Self::ALL[i])
     }
 
     pub fn name(self) -> &'static str {
-        match self {
-            IntegratorKind::Raycast => "raycast",
-            IntegratorKind::Whitted => "whitted",
-        }
+        Self::NAMES[Self::ALL.iter().position(|k| *k == self).unwrap_or(0)]
+    }
+}
+
+impl std::str::FromStr for IntegratorKind {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::from_name(s).ok_or_else(|| {
+            format!(
+                "unknown integrator `{s}`; expected one of: {}",
+                Self::NAMES.join(", ")
+            )
+        })
     }
 }
 
@@ -51,8 +70,13 @@ pub struct RenderSettings {
     /// Samples per pixel: 1 shoots through pixel centres; more are stratified
     /// and jittered.
     pub spp: u32,
-    /// Deepest recursion: a camera ray has depth 0, each bounce adds 1.
-    pub max_depth: u32,
+    /// Deepest recursion: a camera ray has depth 0, each bounce adds 1;
+    /// −1: no limit (the path integrator's Russian roulette ends paths;
+    /// Whitted stops at [`MAX_DEPTH`]).
+    pub max_depth: i32,
+    /// Shadow rays to the area lights per shading point (Whitted and ray
+    /// casting: soft shadows).
+    pub light_samples: u32,
     /// A secondary ray is not traced when its weight (the factor its radiance is
     /// multiplied by on the way to the pixel, largest channel) is below this.
     pub min_weight: f32,
@@ -75,6 +99,7 @@ impl Default for RenderSettings {
             height: 480,
             spp: 1,
             max_depth: 8,
+            light_samples: 16,
             min_weight: 1e-3,
             integrator: IntegratorKind::Whitted,
             threads: 0,
@@ -88,6 +113,16 @@ impl RenderSettings {
     /// The pixels a render covers: the crop, or the whole frame.
     pub fn rect(&self) -> Rect {
         self.crop.unwrap_or(Rect::full(self.width, self.height))
+    }
+
+    /// The depth an integrator stops at: `max_depth`, or for −1 no limit
+    /// (`u32::MAX`) for path tracing and [`MAX_DEPTH`] for the others.
+    pub fn depth_limit(&self) -> u32 {
+        match (self.max_depth, self.integrator) {
+            (d, _) if d >= 0 => d as u32,
+            (_, IntegratorKind::Path) => u32::MAX,
+            _ => MAX_DEPTH,
+        }
     }
 
     /// The samples a render takes of each pixel.
@@ -133,8 +168,17 @@ impl RenderSettings {
                 ));
             }
         }
-        if self.max_depth > MAX_DEPTH {
-            return Err(format!("max_depth {} is above {MAX_DEPTH}", self.max_depth));
+        if !(-1..=MAX_DEPTH as i32).contains(&self.max_depth) {
+            return Err(format!(
+                "max_depth {} is not −1 (no limit) or 0 to {MAX_DEPTH}",
+                self.max_depth
+            ));
+        }
+        if self.light_samples > MAX_LIGHT_SAMPLES {
+            return Err(format!(
+                "light_samples {} is above {MAX_LIGHT_SAMPLES}",
+                self.light_samples
+            ));
         }
         if !(0.0..=1.0).contains(&self.min_weight) {
             return Err(format!("min_weight {} is not in [0, 1]", self.min_weight));
@@ -151,6 +195,8 @@ pub const MAX_IMAGE_SIDE: u32 = 1 << 15;
 pub const MAX_SPP: u32 = 1 << 16;
 /// Largest accepted recursion depth.
 pub const MAX_DEPTH: u32 = 1024;
+/// Largest accepted number of shadow rays per area-light evaluation.
+pub const MAX_LIGHT_SAMPLES: u32 = 4096;
 
 /// A rectangle of pixels, `x ∈ [x0, x1)`, `y ∈ [y0, y1)`, in the frame's
 /// coordinates (origin top left, y down).

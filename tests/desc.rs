@@ -182,6 +182,7 @@ fn every_value_is_checked_whoever_made_the_description() {
     d.materials[0].material.kind = MaterialKind::Dielectric {
         ior: 0.0,
         absorption: Color::ZERO,
+        roughness: 0.0,
     };
     assert_eq!(err(&d), "material `red`: `ior` 0 must be positive");
     let mut d = ok.clone();

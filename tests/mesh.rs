@@ -464,6 +464,7 @@ fn meshes_far_from_unit_size_render_the_same_image() {
             kind: MaterialKind::Dielectric {
                 ior: 1.5,
                 absorption: Vec3::ZERO,
+                roughness: 0.0,
             },
             diffuse: 0.0,
             ambient: 0.0,

@@ -1,7 +1,7 @@
 //! Image-level tests of the renderer on small scenes with known answers.
 
 use glint::math::{Color, Ray, Vec3};
-use glint::render::{Counters, Integrator, render, render_with};
+use glint::render::{Counters, Integrator, PixelSampler, render, render_with};
 use glint::scene::{BUILTIN_WHITTED, Scene, SceneFile, TraceCounters, parse_scene};
 use glint::settings::{IntegratorKind, RenderSettings};
 use std::path::Path;
@@ -146,11 +146,13 @@ fn ray_through_glass_centre_sees_the_wall_behind() {
     let integrator = glint::render::Whitted {
         max_depth: 8,
         min_weight: 1e-6,
+        light_samples: 16,
     };
     let mut counters = Counters::default();
     let through = integrator.radiance(
         s,
         &Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z),
+        &mut PixelSampler::new(0, 0, 0),
         &mut counters,
     );
     // The wall point (0, 0, 4): light at (0, 3, 1) → L = (0, 3, −3)/√18,
@@ -288,7 +290,7 @@ material = "m"
 struct Broken;
 
 impl Integrator for Broken {
-    fn radiance(&self, _: &Scene, ray: &Ray, _: &mut Counters) -> Color {
+    fn radiance(&self, _: &Scene, ray: &Ray, _: &mut PixelSampler, _: &mut Counters) -> Color {
         if ray.d.x > 0.2 {
             Color::splat(f32::NAN)
         } else if ray.d.x < -0.2 {
@@ -347,11 +349,12 @@ fn absorbing_glass_attenuates_by_beer_lambert() {
     let integrator = glint::render::Whitted {
         max_depth: 8,
         min_weight: 1e-6,
+        light_samples: 16,
     };
     let ray = Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z);
     let mut c = Counters::default();
-    let a = integrator.radiance(&clear.scene, &ray, &mut c);
-    let b = integrator.radiance(&tinted.scene, &ray, &mut c);
+    let a = integrator.radiance(&clear.scene, &ray, &mut PixelSampler::new(0, 0, 0), &mut c);
+    let b = integrator.radiance(&tinted.scene, &ray, &mut PixelSampler::new(0, 0, 0), &mut c);
     let ratio = b.x / a.x;
     assert!((ratio - (-0.2f32).exp()).abs() < 2e-3, "{ratio}");
     // Shadow rays through it are tinted the same way.

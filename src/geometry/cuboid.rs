@@ -75,6 +75,37 @@ impl Cuboid {
         }
     }
 
+    /// Three corners `p0, p1, p2` of face `face` (axis `face / 2`, on the
+    /// max side if `face` is odd): the face is the parallelogram
+    /// `p0 + u (p1 − p0) + v (p2 − p0)`, with `(p1 − p0) × (p2 − p0)`
+    /// pointing out of the box.
+    pub fn face_corners(&self, face: usize) -> [Vec3; 3] {
+        let (a, positive) = (face / 2, face % 2 == 1);
+        let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+        let (lo, hi) = (self.bounds.min, self.bounds.max);
+        let mut p0 = lo;
+        if positive {
+            p0[a] = hi[a];
+        }
+        let (mut p1, mut p2) = (p0, p0);
+        p1[b] = hi[b];
+        p2[c] = hi[c];
+        if positive { [p0, p1, p2] } else { [p0, p2, p1] }
+    }
+
+    /// The face index of [`Cuboid::face_corners`] for the outward normal `n`
+    /// of a hit.
+    pub fn face_of(n: Vec3) -> u32 {
+        let a = if n.x != 0.0 {
+            0
+        } else if n.y != 0.0 {
+            1
+        } else {
+            2
+        };
+        (2 * a + (n[a] > 0.0) as usize) as u32
+    }
+
     /// The two world coordinates across the face (x and z on the top face).
     pub fn uv(&self, p: Vec3, prim: u32) -> Vec2 {
         match prim % EXIT {

@@ -393,6 +393,15 @@ impl MeshInstance {
         }
     }
 
+    /// The world-space corners of triangle `prim` (for area lights).
+    pub fn world_triangle(&self, prim: u32) -> [Vec3; 3] {
+        let (a, b, c) = self.mesh.vertices(prim);
+        match &self.transform {
+            None => [a, b, c],
+            Some(x) => [a, b, c].map(|v| x.world_from_object.transform_point3a(v)),
+        }
+    }
+
     #[inline]
     pub fn intersect(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
         self.mesh.intersect_object(&self.object_ray(ray), counters)

@@ -10,11 +10,11 @@
 //! light its shadow rays brought). These add up to the pixel's sample. A
 //! shadow ray's contribution is its part of its parent's.
 
-use super::integrator::{Counters, Integrator, RayKind, Raycast, Recorder, Whitted};
+use super::integrator::{AnyIntegrator, Counters, Integrator, RayKind, Recorder};
 use super::sampler::PixelSamples;
 use crate::math::{Color, Ray, Vec3};
 use crate::scene::{Hit, Scene, TraceCounters};
-use crate::settings::{IntegratorKind, RenderSettings};
+use crate::settings::RenderSettings;
 use serde::Serialize;
 
 /// What a ray hit.
@@ -336,16 +336,14 @@ pub fn explain(
         .ray(x as f32 + u, y as f32 + v, settings.width, settings.height);
     let mut counters = Counters::default();
     let mut tree = RayTree::default();
-    let radiance = match settings.integrator {
-        IntegratorKind::Raycast => {
-            Raycast.radiance_explained(scene, &ray, &mut counters, &mut tree)
-        }
-        IntegratorKind::Whitted => Whitted {
-            max_depth: settings.max_depth,
-            min_weight: settings.min_weight,
-        }
-        .radiance_explained(scene, &ray, &mut counters, &mut tree),
-    };
+    let mut sampler = PixelSamples::new(x, y).sampler(sample);
+    let radiance = AnyIntegrator::new(settings).radiance_explained(
+        scene,
+        &ray,
+        &mut sampler,
+        &mut counters,
+        &mut tree,
+    );
     Ok(Explained {
         pixel: [x, y],
         sample,

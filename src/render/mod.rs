@@ -22,7 +22,8 @@ pub use film::{
     read_film_exr, read_film_header, srgb_encode, write_image,
 };
 pub use integrator::{
-    Counters, Integrator, MAX_RAY_TREE, NoRecord, RayKind, Raycast, Recorder, Whitted,
+    AnyIntegrator, Counters, Integrator, MAX_RAY_TREE, NoRecord, Path, RayKind, Raycast, Recorder,
+    Whitted,
 };
 pub use parts::{Film, FilmHeader, MergeError, SampleSum};
 pub use sampler::{Pcg32, PixelSampler, PixelSamples};
@@ -30,7 +31,7 @@ pub use stats::{RayCounts, RenderStats, TileCounters};
 
 use crate::math::Color;
 use crate::scene::Scene;
-use crate::settings::{IntegratorKind, RenderSettings};
+use crate::settings::RenderSettings;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -85,19 +86,13 @@ pub fn render_film(
     options: &FilmOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Film, RenderStats), RenderError> {
-    match settings.integrator {
-        IntegratorKind::Raycast => render_with(scene, settings, &Raycast, options, progress),
-        IntegratorKind::Whitted => render_with(
-            scene,
-            settings,
-            &Whitted {
-                max_depth: settings.max_depth,
-                min_weight: settings.min_weight,
-            },
-            options,
-            progress,
-        ),
-    }
+    render_with(
+        scene,
+        settings,
+        &AnyIntegrator::new(settings),
+        options,
+        progress,
+    )
 }
 
 /// [`render_film`] with a given integrator.
@@ -349,7 +344,8 @@ fn render_tile<I: Integrator>(
                         .camera
                         .ray(x as f32 + u, y as f32 + v, settings.width, settings.height);
                 counters.rays.camera += 1;
-                let l = integrator.radiance(scene, &ray, &mut counters);
+                let mut sampler = pixel_samples.sampler(index as u32);
+                let l = integrator.radiance(scene, &ray, &mut sampler, &mut counters);
                 // Guard: no NaN or infinity reaches a pixel; count them
                 // instead. Sums are exact and clamped, so every pixel stays
                 // finite.

@@ -66,7 +66,7 @@ pub struct RenderStats {
     pub spp: u32,
     pub sample_offset: u32,
     pub integrator: String,
-    pub max_depth: u32,
+    pub max_depth: i32,
     pub threads: usize,
     /// Time to read and build the scene (filled in by the caller that loaded it).
     pub seconds_load: f64,

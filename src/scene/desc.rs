@@ -353,12 +353,44 @@ fn check_material(m: &Material) -> Result<(), String> {
     match m.kind {
         MaterialKind::Diffuse => Ok(()),
         MaterialKind::Mirror { reflectance } => check_color(reflectance),
-        MaterialKind::Dielectric { ior, absorption } => {
+        MaterialKind::Dielectric {
+            ior,
+            absorption,
+            roughness,
+        } => {
             if !(ior > 0.0 && ior.is_finite()) {
                 return Err(format!("`ior` {ior} must be positive"));
             }
+            check_unit("roughness", roughness)?;
             check_color(absorption)
         }
+        MaterialKind::Conductor {
+            complex_ior,
+            roughness,
+            anisotropy,
+        } => {
+            check_unit("roughness", roughness)?;
+            if !(anisotropy > -1.0 && anisotropy < 1.0) {
+                return Err(format!("`anisotropy` {anisotropy} must lie in (−1, 1)"));
+            }
+            if let Some((eta, k)) = complex_ior {
+                if !(eta.min_element() > 0.0 && eta.is_finite()) {
+                    return Err(format!("`eta` {eta} must be positive"));
+                }
+                check_color(k)?;
+            }
+            Ok(())
+        }
+    }?;
+    check_color(m.emission)
+}
+
+/// A number in [0, 1].
+fn check_unit(name: &str, x: f32) -> Result<(), String> {
+    if (0.0..=1.0).contains(&x) {
+        Ok(())
+    } else {
+        Err(format!("`{name}` {x} must lie in [0, 1]"))
     }
 }
 

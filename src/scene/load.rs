@@ -34,7 +34,9 @@ use super::{CheckerMode, Light, Material, MaterialKind, Scene, Texture};
 use crate::geometry::Implicit;
 use crate::geometry::implicit::ImplicitError;
 use crate::math::{Aabb, Color, Transform, Vec3};
-use crate::settings::{IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP, RenderSettings};
+use crate::settings::{
+    IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_LIGHT_SAMPLES, MAX_SPP, RenderSettings,
+};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
@@ -400,7 +402,7 @@ impl<'c, 'i> Fields<'c, 'i> {
     }
 
     /// An integer in `range`, or `default` if absent.
-    fn int_in(&mut self, key: &'static str, default: u32, range: Range<i64>) -> Result<u32> {
+    fn int_in(&mut self, key: &'static str, default: i64, range: Range<i64>) -> Result<i64> {
         let Some(v) = self.get(key) else {
             return Ok(default);
         };
@@ -415,7 +417,7 @@ impl<'c, 'i> Fields<'c, 'i> {
                 ),
             ));
         }
-        Ok(x as u32)
+        Ok(x)
     }
 
     /// One of `names`, as a string.
@@ -468,10 +470,24 @@ fn read_document(
     let (mut background, mut ambient) = (Color::ZERO, Color::ZERO);
     if let Some(v) = top.get("render") {
         let mut f = Fields::of(ctx, v, "[render]".into())?;
-        settings.width = f.int_in("width", settings.width, 1..MAX_IMAGE_SIDE as i64 + 1)?;
-        settings.height = f.int_in("height", settings.height, 1..MAX_IMAGE_SIDE as i64 + 1)?;
-        settings.spp = f.int_in("spp", settings.spp, 1..MAX_SPP as i64 + 1)?;
-        settings.max_depth = f.int_in("max_depth", settings.max_depth, 0..MAX_DEPTH as i64 + 1)?;
+        settings.width =
+            f.int_in("width", settings.width as i64, 1..MAX_IMAGE_SIDE as i64 + 1)? as u32;
+        settings.height = f.int_in(
+            "height",
+            settings.height as i64,
+            1..MAX_IMAGE_SIDE as i64 + 1,
+        )? as u32;
+        settings.spp = f.int_in("spp", settings.spp as i64, 1..MAX_SPP as i64 + 1)? as u32;
+        settings.max_depth = f.int_in(
+            "max_depth",
+            settings.max_depth as i64,
+            -1..MAX_DEPTH as i64 + 1,
+        )? as i32;
+        settings.light_samples = f.int_in(
+            "light_samples",
+            settings.light_samples as i64,
+            0..MAX_LIGHT_SAMPLES as i64 + 1,
+        )? as u32;
         settings.min_weight = f.checked(
             "min_weight",
             Some(settings.min_weight),
@@ -606,6 +622,7 @@ fn read_material(ctx: &Ctx, name: &str, v: &Value) -> Result<Material> {
     let kind_name = ctx.string(kind)?;
     let is_diffuse = kind_name == "diffuse";
     let base = if is_diffuse { 1.0 } else { 0.0 };
+    let unit = |x: f32| (0.0..=1.0).contains(&x);
     let kind = match kind_name {
         "diffuse" => MaterialKind::Diffuse,
         "mirror" => MaterialKind::Mirror {
@@ -619,12 +636,23 @@ fn read_material(ctx: &Ctx, name: &str, v: &Value) -> Result<Material> {
                 "a positive index of refraction",
             )?,
             absorption: f.opt("absorption", Ctx::color)?.unwrap_or(Color::ZERO),
+            roughness: f.checked("roughness", Some(0.0), unit, "a number from 0 to 1")?,
+        },
+        "conductor" => MaterialKind::Conductor {
+            complex_ior: read_complex_ior(ctx, &mut f)?,
+            roughness: f.checked("roughness", Some(0.0), unit, "a number from 0 to 1")?,
+            anisotropy: f.checked(
+                "anisotropy",
+                Some(0.0),
+                |a| a > -1.0 && a < 1.0,
+                "a number between −1 and 1",
+            )?,
         },
         other => {
             return Err(ctx.error(
                 kind.span(),
                 format!(
-                    "unknown material type `{other}`; expected one of: diffuse, mirror, dielectric"
+                    "unknown material type `{other}`; expected one of: diffuse, mirror, dielectric, conductor"
                 ),
             ));
         }
@@ -653,9 +681,55 @@ fn read_material(ctx: &Ctx, name: &str, v: &Value) -> Result<Material> {
         specular: f.checked("specular", Some(0.0), nonneg, "a number ≥ 0")?,
         shininess: f.checked("shininess", Some(64.0), |x| x > 0.0, "a positive exponent")?,
         kind,
+        emission: f.opt("emission", Ctx::color)?.unwrap_or(Color::ZERO),
+        two_sided: f.opt("two_sided", Ctx::boolean)?.unwrap_or(false),
     };
     f.finish()?;
     Ok(material)
+}
+
+/// A conductor's complex index: `metal = "Au"` (see
+/// [`crate::shading::fresnel::METALS`]), or `eta` and `k`, or neither (a
+/// constant reflectance, the material's colour).
+fn read_complex_ior(ctx: &Ctx, f: &mut Fields) -> Result<Option<(Color, Color)>> {
+    let metal = f.get("metal");
+    let eta = f.opt("eta", Ctx::color)?;
+    let k = f.opt("k", Ctx::color)?;
+    match (metal, eta, k) {
+        (Some(m), None, None) => {
+            let name = ctx.string(m)?;
+            crate::shading::fresnel::metal(name)
+                .map(Some)
+                .ok_or_else(|| {
+                    let names: Vec<&str> = crate::shading::fresnel::METALS
+                        .iter()
+                        .map(|(n, _, _)| *n)
+                        .collect();
+                    ctx.error(
+                        m.span(),
+                        format!(
+                            "unknown metal `{name}`; expected one of: {}",
+                            names.join(", ")
+                        ),
+                    )
+                })
+        }
+        (Some(m), _, _) => Err(ctx.error(
+            m.span(),
+            "give either `metal` or `eta` and `k`, not both".to_string(),
+        )),
+        (None, Some(eta), Some(k)) => {
+            if eta.min_element() <= 0.0 {
+                return Err(ctx.error(f.span.clone(), "`eta` must be positive".to_string()));
+            }
+            Ok(Some((eta, k)))
+        }
+        (None, None, None) => Ok(None),
+        (None, _, _) => Err(ctx.error(
+            f.span.clone(),
+            "a conductor needs both `eta` and `k` (or `metal`)".to_string(),
+        )),
+    }
 }
 
 fn read_light(ctx: &Ctx, v: &Value, index: usize) -> Result<Light> {

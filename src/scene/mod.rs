@@ -19,14 +19,16 @@ pub use load::{
     BUILTIN_WHITTED, SceneError, SceneFile, load_scene_file, parse_scene, parse_scene_desc,
     parse_scene_json,
 };
-pub use material::{Fresnel, Material, MaterialKind, fresnel_dielectric, reflect, refract};
+pub use material::{Material, MaterialKind};
 pub use mesh_scene::{MeshSceneError, mesh_scene};
 pub use texture::{CheckerMode, Texture};
 
 use crate::accel::{Bvh, TraversalCounters};
 pub use crate::geometry::TraceCounters;
 use crate::geometry::{Shape, ShapeHit, SurfacePoint};
+use crate::light::LightSet;
 use crate::math::{Aabb, Color, Ray, Vec3};
+use crate::shading::fresnel_dielectric;
 
 /// A shape with a material (an index into [`Scene::materials`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -85,6 +87,9 @@ pub struct Scene {
     pub background: Color,
     /// Ambient light `A` of Whitted's model.
     pub ambient: Color,
+    /// The lights the integrators sample: `lights`, the emissive objects'
+    /// area lights and the environment (see [`LightSet::build`]).
+    pub emitters: LightSet,
     /// Per object: does its material stop shadow rays?
     opaque: Vec<bool>,
     /// Top-level BVH over the objects with finite bounds.
@@ -145,6 +150,11 @@ impl Scene {
         // Infinite boxes are left out of the BVH by its builder.
         let tlas = Bvh::build(&bounds);
         let objects_len = objects.len();
+        let scene_bounds = bounds
+            .iter()
+            .filter(|b| finite(b))
+            .fold(Aabb::EMPTY, |a, b| a.union(b));
+        let emitters = LightSet::build(&objects, &materials, &lights, background, scene_bounds);
         Ok(Scene {
             camera,
             objects,
@@ -152,6 +162,7 @@ impl Scene {
             lights,
             background,
             ambient,
+            emitters,
             opaque,
             tlas,
             unbounded,
@@ -356,8 +367,9 @@ impl Scene {
         if self.opaque[i as usize] {
             return object.shape.occludes(ray, counters);
         }
-        if let MaterialKind::Dielectric { ior, absorption } =
-            self.materials[object.material as usize].kind
+        if let MaterialKind::Dielectric {
+            ior, absorption, ..
+        } = self.materials[object.material as usize].kind
         {
             let mut passed = 1.0f32;
             let inside = object.shape.crossings(ray, counters, &mut |cos| {

@@ -580,6 +580,17 @@ fn map_material(m: &::gltf::Material) -> Result<Material, String> {
         x if (1.0..1e6).contains(&x) => x,
         x => return Err(format!("ior {x} is not 0 or a number ≥ 1")),
     };
+    // Emitted radiance: emissiveFactor × KHR_materials_emissive_strength.
+    let strength = m.emissive_strength().unwrap_or(1.0);
+    if !(strength >= 0.0 && strength.is_finite()) {
+        return Err(format!("emissiveStrength {strength} is not a number ≥ 0"));
+    }
+    let [er, eg, eb] = m.emissive_factor();
+    let emission = Color::new(
+        unit("emissiveFactor", er)?,
+        unit("emissiveFactor", eg)?,
+        unit("emissiveFactor", eb)?,
+    ) * strength;
     let mut material = Material {
         texture: Texture::Solid(base),
         ambient: 1.0,
@@ -587,16 +598,25 @@ fn map_material(m: &::gltf::Material) -> Result<Material, String> {
         specular,
         shininess,
         kind: MaterialKind::Diffuse,
+        emission,
+        two_sided: m.double_sided(),
     };
     if transmission > 0.0 {
         material.kind = MaterialKind::Dielectric {
             ior,
             absorption: Color::ZERO,
+            roughness,
         };
         material.diffuse = 1.0 - transmission;
         material.ambient = 0.0;
     } else if metallic >= 0.5 {
-        material.kind = MaterialKind::Mirror { reflectance: base };
+        // A metal tinted by the base colour (glTF's conductor: Schlick's
+        // Fresnel from F0 = base colour, which at normal incidence is it).
+        material.kind = MaterialKind::Conductor {
+            complex_ior: None,
+            roughness,
+            anisotropy: 0.0,
+        };
         material.diffuse = 0.0;
         material.ambient = 0.0;
     }

@@ -494,6 +494,23 @@ pub fn smooth_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
         .collect()
 }
 
+/// MTL `Ke r g b` (emitted radiance), which tobj leaves among the unknown
+/// parameters; black where absent or not three finite numbers ≥ 0.
+fn emission(m: &tobj::Material) -> Color {
+    let Some(text) = m.unknown_param.get("Ke") else {
+        return Color::ZERO;
+    };
+    let v: Vec<f32> = text
+        .split_whitespace()
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    match v[..] {
+        [r, g, b] if [r, g, b].iter().all(|x| x.is_finite() && *x >= 0.0) => Color::new(r, g, b),
+        [x] if x.is_finite() && x >= 0.0 => Color::splat(x),
+        _ => Color::ZERO,
+    }
+}
+
 fn map_material(m: &tobj::Material) -> Material {
     let kd = m.diffuse.map_or(Color::splat(0.8), Color::from);
     let ks = m.specular.map_or(Color::ZERO, Color::from);
@@ -504,6 +521,8 @@ fn map_material(m: &tobj::Material) -> Material {
         specular: ks.max_element(),
         shininess: m.shininess.filter(|&s| s > 0.0).unwrap_or(64.0),
         kind: MaterialKind::Diffuse,
+        emission: emission(m),
+        two_sided: false,
     };
     let glass =
         matches!(m.illumination_model, Some(4 | 6 | 7)) || m.dissolve.is_some_and(|d| d < 1.0);
@@ -511,6 +530,7 @@ fn map_material(m: &tobj::Material) -> Material {
         material.kind = MaterialKind::Dielectric {
             ior: m.optical_density.filter(|&n| n > 0.0).unwrap_or(1.5),
             absorption: Color::ZERO,
+            roughness: 0.0,
         };
         material.diffuse = 0.0;
         material.ambient = 0.0;

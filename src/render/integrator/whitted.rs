@@ -1,158 +1,15 @@
-//! Integrators: ray casting (Appel 1968) and recursive ray tracing
-//! (Whitted 1979).
+//! Whitted's recursive ray tracing, and the local terms of its
+//! illumination model (which [`super::Raycast`] shares).
 
-use super::explain::RayTree;
-use super::stats::RayCounts;
-use crate::math::{Color, Ray, Vec3};
-use crate::scene::{
-    Hit, Light, MaterialKind, Scene, SurfaceInteraction, TraceCounters, fresnel_dielectric,
-    reflect, refract,
+use super::{
+    Counters, Integrator, MAX_RAY_TREE, NoRecord, RayKind, Recorder, face_forward, intersect,
 };
-
-/// Work counters an integrator adds to while tracing.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Counters {
-    pub rays: RayCounts,
-    pub trace: TraceCounters,
-    /// Camera samples whose ray tree reached [`MAX_RAY_TREE`] (Whitted).
-    pub ray_trees_cut: u64,
-}
-
-/// The most secondary rays (reflected and refracted) one camera sample may
-/// spawn in [`Whitted`]. Each glass hit splits a ray in two, so with a
-/// `min_weight` of 0 the tree behind one pixel grows as 2^max_depth; this
-/// bounds it. A full tree of the default depth 8 has 510 secondary rays, so
-/// the bound binds only where depth and weight are pushed far past the
-/// defaults; the rays it cuts are the last in depth-first order (reflection
-/// before refraction), and the render counts the samples it cut.
-pub const MAX_RAY_TREE: u32 = 1024;
-
-/// Computes the radiance arriving along a camera ray.
-pub trait Integrator: Sync {
-    fn radiance(&self, scene: &Scene, ray: &Ray, counters: &mut Counters) -> Color;
-
-    /// [`Integrator::radiance`], telling `tree` about every ray it traces
-    /// (`glint explain`). Integrators that cannot tell return the radiance
-    /// and leave the tree empty.
-    fn radiance_explained(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        counters: &mut Counters,
-        tree: &mut RayTree,
-    ) -> Color {
-        let _ = tree;
-        self.radiance(scene, ray, counters)
-    }
-}
-
-/// What an integrator tells while it traces, for `glint explain`. The
-/// methods do nothing by default; [`NoRecord`] is what a render passes, so
-/// the calls vanish from rendering code.
-pub trait Recorder {
-    /// Whether shadow rays should find what blocks them (a second trace).
-    const BLOCKERS: bool = false;
-    /// A camera, reflected or refracted ray starts; `weight` is the factor
-    /// its radiance is multiplied by on its way to the pixel.
-    #[inline]
-    fn begin(&mut self, _kind: RayKind, _ray: &Ray, _weight: Color) {}
-    /// What it hit (or `None`), with the work its intersection did.
-    #[inline]
-    fn hit(&mut self, _scene: &Scene, _ray: &Ray, _hit: Option<&Hit>, _work: TraceCounters) {}
-    /// A shadow ray to light `light`: its transmittance, where an opaque
-    /// object blocked it (if asked for), and the radiance it brought (its
-    /// share of the local term).
-    #[inline]
-    fn shadow(
-        &mut self,
-        _scene: &Scene,
-        _light: usize,
-        _ray: &Ray,
-        _visibility: Color,
-        _blocker: Option<&Hit>,
-        _radiance: Color,
-    ) {
-    }
-    /// The Fresnel reflectance and transmittance at a dielectric hit.
-    #[inline]
-    fn fresnel(&mut self, _reflectance: f32, _transmittance: f32) {}
-    /// The ray ends: the local term at its hit (or the background), the
-    /// absorption factor applied to everything it returns, and its radiance.
-    #[inline]
-    fn end(&mut self, _local: Color, _absorption: Color, _radiance: Color) {}
-}
-
-/// The recorder of an ordinary render: nothing.
-pub struct NoRecord;
-impl Recorder for NoRecord {}
-
-/// Kinds of rays in a ray tree.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum RayKind {
-    Camera,
-    Reflection,
-    Refraction,
-    Shadow,
-}
-
-/// Appel's ray casting: the first hit along the eye ray, shaded by the local
-/// terms of its material with a shadow ray to each light. No secondary rays.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Raycast;
-
-impl Integrator for Raycast {
-    fn radiance(&self, scene: &Scene, ray: &Ray, counters: &mut Counters) -> Color {
-        self.trace(scene, ray, counters, &mut NoRecord)
-    }
-
-    fn radiance_explained(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        counters: &mut Counters,
-        tree: &mut RayTree,
-    ) -> Color {
-        self.trace(scene, ray, counters, tree)
-    }
-}
-
-impl Raycast {
-    fn trace<R: Recorder>(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        counters: &mut Counters,
-        rec: &mut R,
-    ) -> Color {
-        rec.begin(RayKind::Camera, ray, Color::ONE);
-        let hit = intersect(scene, ray, counters, rec);
-        let Some(hit) = hit else {
-            rec.end(scene.background, Color::ONE, scene.background);
-            return scene.background;
-        };
-        let si = scene.surface(ray, &hit);
-        let wo = -ray.d.normalize();
-        let n_facing = face_forward(si.ns, face_forward(si.n, wo));
-        let l = local_shading(scene, &si, wo, n_facing, counters, rec);
-        rec.end(l, Color::ONE, l);
-        l
-    }
-}
-
-/// `scene.intersect`, telling the recorder what was hit and the work done.
-#[inline]
-fn intersect<R: Recorder>(
-    scene: &Scene,
-    ray: &Ray,
-    counters: &mut Counters,
-    rec: &mut R,
-) -> Option<Hit> {
-    let before = counters.trace;
-    let hit = scene.intersect(ray, &mut counters.trace);
-    rec.hit(scene, ray, hit.as_ref(), counters.trace.since(&before));
-    hit
-}
+use crate::light::Light;
+use crate::math::{Color, Ray, Vec3};
+use crate::render::explain::RayTree;
+use crate::render::sampler::PixelSampler;
+use crate::scene::{MaterialKind, Scene, SurfaceInteraction, TraceCounters};
+use crate::shading::{Bsdf, bsdf_at, fresnel_dielectric, reflect, refract};
 
 /// Whitted's recursive ray tracing.
 ///
@@ -164,26 +21,38 @@ fn intersect<R: Recorder>(
 /// when a ray's weight (the product of the factors on its way to the pixel,
 /// largest channel) would fall below `min_weight`, at `max_depth` bounces, or
 /// when the sample has spawned [`MAX_RAY_TREE`] secondary rays.
-/// Lights are points or directions and cannot be hit by rays.
+///
+/// Point and directional lights get one shadow ray each. Area lights (the
+/// emissive objects) get `light_samples` shadow rays in all, to points
+/// chosen by power among them and stratified over their surfaces: soft
+/// shadows. Rays that hit an emitter see its emission.
 #[derive(Clone, Copy, Debug)]
 pub struct Whitted {
     pub max_depth: u32,
     pub min_weight: f32,
+    pub light_samples: u32,
 }
 
 impl Integrator for Whitted {
-    fn radiance(&self, scene: &Scene, ray: &Ray, counters: &mut Counters) -> Color {
-        self.camera_ray(scene, ray, counters, &mut NoRecord)
+    fn radiance(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+    ) -> Color {
+        self.camera_ray(scene, ray, sampler, counters, &mut NoRecord)
     }
 
     fn radiance_explained(
         &self,
         scene: &Scene,
         ray: &Ray,
+        sampler: &mut PixelSampler,
         counters: &mut Counters,
         tree: &mut RayTree,
     ) -> Color {
-        self.camera_ray(scene, ray, counters, tree)
+        self.camera_ray(scene, ray, sampler, counters, tree)
     }
 }
 
@@ -210,6 +79,7 @@ impl Whitted {
         &self,
         scene: &Scene,
         ray: &Ray,
+        sampler: &mut PixelSampler,
         counters: &mut Counters,
         rec: &mut R,
     ) -> Color {
@@ -218,7 +88,17 @@ impl Whitted {
             cut: false,
         };
         rec.begin(RayKind::Camera, ray, Color::ONE);
-        let l = self.trace(scene, ray, 0, 1.0, Color::ONE, &mut budget, counters, rec);
+        let l = self.trace(
+            scene,
+            ray,
+            0,
+            1.0,
+            Color::ONE,
+            &mut budget,
+            sampler,
+            counters,
+            rec,
+        );
         counters.ray_trees_cut += budget.cut as u64;
         l
     }
@@ -237,6 +117,7 @@ impl Whitted {
         weight: f32,
         throughput: Color,
         budget: &mut Budget,
+        sampler: &mut PixelSampler,
         counters: &mut Counters,
         rec: &mut R,
     ) -> Color {
@@ -250,7 +131,16 @@ impl Whitted {
         let front = d.dot(si.n) < 0.0;
         // The shading normal, on the side of the geometric normal the ray came from.
         let n_facing = face_forward(si.ns, if front { si.n } else { -si.n });
-        let local = local_shading(scene, &si, wo, n_facing, counters, rec);
+        let local = local_shading(
+            scene,
+            &si,
+            wo,
+            n_facing,
+            self.light_samples,
+            sampler,
+            counters,
+            rec,
+        );
         let mut l = local;
         let material = &scene.materials[si.material as usize];
         // Absorption inside a dielectric scales everything this ray returns.
@@ -265,9 +155,19 @@ impl Whitted {
         let carried = throughput * absorption.unwrap_or(Color::ONE);
 
         if depth < self.max_depth {
+            // A conductor is a mirror here, of its Fresnel reflectance.
+            let mirror = match material.kind {
+                MaterialKind::Mirror { reflectance } => Some(reflectance),
+                MaterialKind::Conductor { .. } => match bsdf_at(material, scene.albedo(&si)) {
+                    Bsdf::Conductor { fresnel, .. } => Some(fresnel.eval(wo.dot(n_facing))),
+                    _ => None,
+                },
+                _ => None,
+            };
             match material.kind {
                 MaterialKind::Diffuse => {}
-                MaterialKind::Mirror { reflectance } => {
+                MaterialKind::Mirror { .. } | MaterialKind::Conductor { .. } => {
+                    let reflectance = mirror.unwrap_or(Color::ZERO);
                     let w = weight * reflectance.max_element();
                     if w >= self.min_weight && spend(budget) {
                         counters.rays.reflection += 1;
@@ -275,7 +175,17 @@ impl Whitted {
                         let t = carried * reflectance;
                         rec.begin(RayKind::Reflection, &r, t);
                         l += reflectance
-                            * self.trace(scene, &r, depth + 1, w, t, budget, counters, rec);
+                            * self.trace(
+                                scene,
+                                &r,
+                                depth + 1,
+                                w,
+                                t,
+                                budget,
+                                sampler,
+                                counters,
+                                rec,
+                            );
                     }
                 }
                 MaterialKind::Dielectric { ior, .. } => {
@@ -289,7 +199,17 @@ impl Whitted {
                         let t = carried * f.reflectance;
                         rec.begin(RayKind::Reflection, &r, t);
                         l += f.reflectance
-                            * self.trace(scene, &r, depth + 1, w, t, budget, counters, rec);
+                            * self.trace(
+                                scene,
+                                &r,
+                                depth + 1,
+                                w,
+                                t,
+                                budget,
+                                sampler,
+                                counters,
+                                rec,
+                            );
                     }
                     let w = weight * f.transmittance;
                     if w >= self.min_weight
@@ -301,7 +221,17 @@ impl Whitted {
                         let t = carried * f.transmittance;
                         rec.begin(RayKind::Refraction, &r, t);
                         l += f.transmittance
-                            * self.trace(scene, &r, depth + 1, w, t, budget, counters, rec);
+                            * self.trace(
+                                scene,
+                                &r,
+                                depth + 1,
+                                w,
+                                t,
+                                budget,
+                                sampler,
+                                counters,
+                                rec,
+                            );
                     }
                 }
             }
@@ -316,12 +246,6 @@ impl Whitted {
     }
 }
 
-/// `n` flipped, if needed, to the side of `w`.
-#[inline]
-fn face_forward(n: Vec3, w: Vec3) -> Vec3 {
-    if n.dot(w) < 0.0 { -n } else { n }
-}
-
 /// The local terms of Whitted's model at a hit seen from direction `wo`
 /// (unit, towards the viewer), with `n_facing` the unit normal on `wo`'s side:
 /// `k_a·C·A + Σ_lights V·E·(k_d·C·(N·L) + k_s·(N·H)^n)` over the lights with
@@ -329,44 +253,70 @@ fn face_forward(n: Vec3, w: Vec3) -> Vec3 {
 /// blocked by an opaque object, in between through glass), `E` the light's
 /// irradiance at the point (`I/r²` for a point light), and `H = (L + wo)/|L + wo|`
 /// (Blinn 1977).
+///
+/// An area light contributes `(1/N) Σ_j V_j·L_j/p_j·(k_d·C·(N·L_j) + k_s·(N·H_j)^n)`
+/// over `N = light_samples` points chosen by power among the area lights
+/// (`p_j` the density of the direction, over solid angle, times the
+/// probability of the light), stratified by a rank-1 lattice rotated per
+/// sample (see [`lattice_point`]). For a small light of radiance
+/// `L` and area `A` this is the point light of intensity `L·A`. An emitting
+/// surface adds its own emission.
+#[allow(clippy::too_many_arguments)]
 #[inline]
-fn local_shading<R: Recorder>(
+pub(super) fn local_shading<R: Recorder>(
     scene: &Scene,
     si: &SurfaceInteraction,
     wo: Vec3,
     n_facing: Vec3,
+    light_samples: u32,
+    sampler: &mut PixelSampler,
     counters: &mut Counters,
     rec: &mut R,
 ) -> Color {
     let m = &scene.materials[si.material as usize];
     let albedo = scene.albedo(si);
     let mut l = m.ambient * albedo * scene.ambient;
+    if m.is_emissive() && (m.two_sided || si.n.dot(wo) > 0.0) {
+        l += m.emission;
+    }
     if m.diffuse == 0.0 && m.specular == 0.0 {
         return l;
     }
-    for (index, light) in scene.lights.iter().enumerate() {
-        let (wi, irradiance, shadow_ray) = match *light {
-            Light::Point {
-                position,
-                intensity,
-            } => {
-                let to_light = position - si.p;
-                let dist2 = to_light.length_squared();
-                (
-                    to_light / dist2.sqrt(),
-                    intensity / dist2,
-                    Ray::spawn_to(si.p, si.p_err, si.n, position),
-                )
-            }
-            Light::Directional {
-                direction,
-                irradiance,
-            } => (
-                -direction,
-                irradiance,
-                Ray::spawn(si.p, si.p_err, si.n, -direction),
-            ),
+    let emitters = &scene.emitters;
+    let area = (light_samples > 0 && !emitters.area_select.is_empty()).then(|| {
+        let (r0, r1) = sampler.next_2d();
+        (light_samples, [r0, r1, sampler.next_1d()])
+    });
+    let samples = emitters
+        .delta_lights
+        .iter()
+        .map(|&i| (i as usize, 1.0f32, (0.5f32, 0.5f32)))
+        .chain(area.into_iter().flat_map(|(n, rot)| {
+            (0..n).filter_map(move |j| {
+                let (u0, u1, u2) = lattice_point(j, n, rot);
+                let (k, pmf) = emitters.area_select.sample(u0)?;
+                Some((emitters.area_lights[k] as usize, pmf * n as f32, (u1, u2)))
+            })
+        }));
+    for (index, scale, u) in samples {
+        let light = &emitters.lights[index];
+        let Some(ls) = light.sample_li(si.p, u) else {
+            continue;
         };
+        let wi = ls.wi;
+        let (irradiance, shadow_ray) = match ls.target {
+            Some(target) if ls.delta => (ls.li, Ray::spawn_to(si.p, si.p_err, si.n, target)),
+            Some(target) => (
+                ls.li / (ls.pdf * scale),
+                Ray::spawn_to(si.p, si.p_err, si.n, target),
+            ),
+            None => (ls.li, Ray::spawn(si.p, si.p_err, si.n, wi)),
+        };
+        if let Light::Area(_) | Light::Sphere { .. } = light
+            && !irradiance.is_finite()
+        {
+            continue;
+        }
         let cos = n_facing.dot(wi);
         if cos <= 0.0 {
             continue;
@@ -399,4 +349,23 @@ fn local_shading<R: Recorder>(
         l += term;
     }
     l
+}
+
+/// Point `j` of an `n`-point rank-1 lattice in [0, 1)³ shifted modulo 1 by
+/// the uniform `rot` (Cranley–Patterson rotation, which makes each point
+/// uniform and the set stratified): `(j + ½)/n` chooses the light, and the
+/// R2 sequence `{j·(1/ρ, 1/ρ²)}` (ρ the plastic number; Roberts 2018) the
+/// point on it.
+#[inline]
+fn lattice_point(j: u32, n: u32, rot: [f32; 3]) -> (f32, f32, f32) {
+    const A1: f64 = 0.754_877_666_246_692_7;
+    const A2: f64 = 0.569_840_290_998_053_2;
+    let wrap = |x: f32| {
+        let f = x - x.floor();
+        if f >= 1.0 { 0.0 } else { f }
+    };
+    let a = (j as f32 + 0.5) / n as f32;
+    let b = (j as f64 * A1).fract() as f32;
+    let c = (j as f64 * A2).fract() as f32;
+    (wrap(a + rot[0]), wrap(b + rot[1]), wrap(c + rot[2]))
 }

@@ -1,0 +1,193 @@
+//! Integrators, one per file: ray casting (Appel 1968), recursive ray
+//! tracing (Whitted 1979) and unidirectional path tracing (Kajiya 1986,
+//! with Veach's multiple importance sampling). [`IntegratorKind`] names
+//! them; [`AnyIntegrator::new`] makes the one the settings name.
+
+mod path;
+mod raycast;
+mod whitted;
+
+pub use path::Path;
+pub use raycast::Raycast;
+pub use whitted::Whitted;
+
+use super::explain::RayTree;
+use super::sampler::PixelSampler;
+use super::stats::RayCounts;
+use crate::math::{Color, Ray, Vec3};
+use crate::scene::{Hit, Scene, TraceCounters};
+use crate::settings::{IntegratorKind, RenderSettings};
+
+/// Work counters an integrator adds to while tracing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Counters {
+    pub rays: RayCounts,
+    pub trace: TraceCounters,
+    /// Camera samples whose ray tree reached [`MAX_RAY_TREE`] (Whitted).
+    pub ray_trees_cut: u64,
+}
+
+/// The most secondary rays (reflected and refracted) one camera sample may
+/// spawn in [`Whitted`]. Each glass hit splits a ray in two, so with a
+/// `min_weight` of 0 the tree behind one pixel grows as 2^max_depth; this
+/// bounds it. A full tree of the default depth 8 has 510 secondary rays, so
+/// the bound binds only where depth and weight are pushed far past the
+/// defaults; the rays it cuts are the last in depth-first order (reflection
+/// before refraction), and the render counts the samples it cut.
+pub const MAX_RAY_TREE: u32 = 1024;
+
+/// Computes the radiance arriving along a camera ray. `sampler` gives the
+/// sample's random numbers after the pixel position.
+pub trait Integrator: Sync {
+    fn radiance(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+    ) -> Color;
+
+    /// [`Integrator::radiance`], telling `tree` about every ray it traces
+    /// (`glint explain`). Integrators that cannot tell return the radiance
+    /// and leave the tree empty.
+    fn radiance_explained(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        tree: &mut RayTree,
+    ) -> Color {
+        let _ = tree;
+        self.radiance(scene, ray, sampler, counters)
+    }
+}
+
+/// The integrator the settings name.
+#[derive(Clone, Copy, Debug)]
+pub enum AnyIntegrator {
+    Raycast(Raycast),
+    Whitted(Whitted),
+    Path(Path),
+}
+
+impl AnyIntegrator {
+    pub fn new(settings: &RenderSettings) -> Self {
+        match settings.integrator {
+            IntegratorKind::Raycast => AnyIntegrator::Raycast(Raycast {
+                light_samples: settings.light_samples,
+            }),
+            IntegratorKind::Whitted => AnyIntegrator::Whitted(Whitted {
+                max_depth: settings.depth_limit(),
+                min_weight: settings.min_weight,
+                light_samples: settings.light_samples,
+            }),
+            IntegratorKind::Path => AnyIntegrator::Path(Path {
+                max_depth: settings.depth_limit(),
+                rr_depth: 5,
+            }),
+        }
+    }
+}
+
+impl Integrator for AnyIntegrator {
+    #[inline]
+    fn radiance(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+    ) -> Color {
+        match self {
+            AnyIntegrator::Raycast(i) => i.radiance(scene, ray, sampler, counters),
+            AnyIntegrator::Whitted(i) => i.radiance(scene, ray, sampler, counters),
+            AnyIntegrator::Path(i) => i.radiance(scene, ray, sampler, counters),
+        }
+    }
+
+    fn radiance_explained(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        tree: &mut RayTree,
+    ) -> Color {
+        match self {
+            AnyIntegrator::Raycast(i) => i.radiance_explained(scene, ray, sampler, counters, tree),
+            AnyIntegrator::Whitted(i) => i.radiance_explained(scene, ray, sampler, counters, tree),
+            AnyIntegrator::Path(i) => i.radiance_explained(scene, ray, sampler, counters, tree),
+        }
+    }
+}
+
+/// What an integrator tells while it traces, for `glint explain`. The
+/// methods do nothing by default; [`NoRecord`] is what a render passes, so
+/// the calls vanish from rendering code.
+pub trait Recorder {
+    /// Whether shadow rays should find what blocks them (a second trace).
+    const BLOCKERS: bool = false;
+    /// A camera, reflected or refracted ray starts; `weight` is the factor
+    /// its radiance is multiplied by on its way to the pixel.
+    #[inline]
+    fn begin(&mut self, _kind: RayKind, _ray: &Ray, _weight: Color) {}
+    /// What it hit (or `None`), with the work its intersection did.
+    #[inline]
+    fn hit(&mut self, _scene: &Scene, _ray: &Ray, _hit: Option<&Hit>, _work: TraceCounters) {}
+    /// A shadow ray to light `light`: its transmittance, where an opaque
+    /// object blocked it (if asked for), and the radiance it brought (its
+    /// share of the local term).
+    #[inline]
+    fn shadow(
+        &mut self,
+        _scene: &Scene,
+        _light: usize,
+        _ray: &Ray,
+        _visibility: Color,
+        _blocker: Option<&Hit>,
+        _radiance: Color,
+    ) {
+    }
+    /// The Fresnel reflectance and transmittance at a dielectric hit.
+    #[inline]
+    fn fresnel(&mut self, _reflectance: f32, _transmittance: f32) {}
+    /// The ray ends: the local term at its hit (or the background), the
+    /// absorption factor applied to everything it returns, and its radiance.
+    #[inline]
+    fn end(&mut self, _local: Color, _absorption: Color, _radiance: Color) {}
+}
+
+/// The recorder of an ordinary render: nothing.
+pub struct NoRecord;
+impl Recorder for NoRecord {}
+
+/// Kinds of rays in a ray tree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RayKind {
+    Camera,
+    Reflection,
+    Refraction,
+    Shadow,
+}
+
+/// `scene.intersect`, telling the recorder what was hit and the work done.
+#[inline]
+pub(super) fn intersect<R: Recorder>(
+    scene: &Scene,
+    ray: &Ray,
+    counters: &mut Counters,
+    rec: &mut R,
+) -> Option<Hit> {
+    let before = counters.trace;
+    let hit = scene.intersect(ray, &mut counters.trace);
+    rec.hit(scene, ray, hit.as_ref(), counters.trace.since(&before));
+    hit
+}
+
+/// `n` flipped, if needed, to the side of `w`.
+#[inline]
+pub(super) fn face_forward(n: Vec3, w: Vec3) -> Vec3 {
+    if n.dot(w) < 0.0 { -n } else { n }
+}

@@ -1,0 +1,240 @@
+//! Unidirectional path tracing with next-event estimation and multiple
+//! importance sampling.
+
+use super::{Counters, Integrator, NoRecord, RayKind, Recorder, face_forward, intersect};
+use crate::light::Light;
+use crate::math::{Color, Ray, Vec3};
+use crate::render::explain::RayTree;
+use crate::render::sampler::PixelSampler;
+use crate::scene::{MaterialKind, Scene};
+use crate::shading::{Frame, bsdf_at};
+
+/// Path tracing (Kajiya 1986), as pbrt-v4's `PathIntegrator`:
+///
+/// - at every vertex whose BSDF is not a pure delta, one light is chosen by
+///   power and sampled (next-event estimation), and one direction is sampled
+///   from the BSDF to continue the path;
+/// - light reached both ways is weighted by Veach's power heuristic
+///   `w_a = p_a²/(p_a² + p_b²)` (Veach & Guibas 1995), so each estimator
+///   covers what it samples well;
+/// - delta lights (point, directional) are reached only by light sampling
+///   and delta BSDFs (smooth mirrors and glass) only by BSDF sampling, both
+///   with weight 1; glass is a surface like any other (light passes it only
+///   along sampled paths);
+/// - Russian roulette from bounce `rr_depth` on: a path survives with
+///   probability `q = min(1, max(β·η²))` and is reweighted by `1/q`;
+/// - `max_depth` bounces at most (`u32::MAX`: no limit but roulette).
+///
+/// Rays that leave the scene see the environment (the background colour),
+/// which is a light too.
+#[derive(Clone, Copy, Debug)]
+pub struct Path {
+    pub max_depth: u32,
+    pub rr_depth: u32,
+}
+
+impl Integrator for Path {
+    fn radiance(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+    ) -> Color {
+        self.trace(scene, ray, sampler, counters, &mut NoRecord)
+    }
+
+    fn radiance_explained(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        tree: &mut RayTree,
+    ) -> Color {
+        self.trace(scene, ray, sampler, counters, tree)
+    }
+}
+
+/// The power heuristic with β = 2.
+#[inline]
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2.is_infinite() {
+        return 1.0;
+    }
+    if a2 + b2 == 0.0 { 0.0 } else { a2 / (a2 + b2) }
+}
+
+impl Path {
+    fn trace<R: Recorder>(
+        &self,
+        scene: &Scene,
+        camera_ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        rec: &mut R,
+    ) -> Color {
+        let emitters = &scene.emitters;
+        let mut l = Color::ZERO;
+        let mut beta = Color::ONE;
+        let mut ray = *camera_ray;
+        ray.d = ray.d.normalize();
+        let mut depth = 0u32;
+        // What the last bounce was, for weighting emitters it finds.
+        let mut specular = true;
+        let mut prev_pdf = 0.0f32;
+        let mut prev_p = ray.o;
+        // The product of η² over refractions, for roulette (pbrt's etaScale).
+        let mut eta_scale = 1.0f32;
+        rec.begin(RayKind::Camera, &ray, beta);
+        loop {
+            let hit = intersect(scene, &ray, counters, rec);
+            let Some(hit) = hit else {
+                if let Some(env) = emitters.environment {
+                    let light = &emitters.lights[env as usize];
+                    let le = light.le(Vec3::ZERO, -ray.d);
+                    let w = if specular {
+                        1.0
+                    } else {
+                        let p_light =
+                            emitters.select.pmf(env as usize) * light.pdf_li(prev_p, ray.d, prev_p);
+                        power_heuristic(prev_pdf, p_light)
+                    };
+                    l += beta * le * w;
+                }
+                break;
+            };
+            let si = scene.surface(&ray, &hit);
+            let material = &scene.materials[si.material as usize];
+            let wo = -ray.d;
+            let front = si.n.dot(wo) > 0.0;
+
+            // Emission found by the path.
+            if material.is_emissive() && (material.two_sided || front) {
+                let le = material.emission;
+                let object = &scene.objects[si.object as usize];
+                let w = match emitters.light_of(si.object, si.prim, si.n, &object.shape) {
+                    Some(index) if !specular => {
+                        let light: &Light = &emitters.lights[index as usize];
+                        let p_light =
+                            emitters.select.pmf(index as usize) * light.pdf_li(prev_p, ray.d, si.p);
+                        power_heuristic(prev_pdf, p_light)
+                    }
+                    _ => 1.0,
+                };
+                l += beta * le * w;
+            }
+
+            // Light absorbed on the way through a dielectric.
+            if !front
+                && let MaterialKind::Dielectric { absorption, .. } = material.kind
+                && absorption != Color::ZERO
+            {
+                beta *= (-absorption * hit.t).exp();
+            }
+
+            if depth == self.max_depth {
+                break;
+            }
+            depth += 1;
+
+            let bsdf = bsdf_at(material, scene.albedo(&si));
+            // The frame: for opaque surfaces the shading normal on the
+            // viewer's side; for glass, on the outside.
+            let n_shading = if bsdf.transmits() {
+                face_forward(si.ns, si.n)
+            } else {
+                face_forward(si.ns, face_forward(si.n, wo))
+            };
+            let frame = Frame::from_z(n_shading);
+            let wo_local = frame.to_local(wo);
+            let (u_light, u_lobe) = sampler.next_2d();
+            let u_light_pos = sampler.next_2d();
+            let u_bsdf = sampler.next_2d();
+
+            // Next-event estimation.
+            if !bsdf.is_delta()
+                && let Some((index, pmf)) = emitters.select.sample(u_light)
+            {
+                let light = &emitters.lights[index];
+                if let Some(ls) = light.sample_li(si.p, u_light_pos) {
+                    let wi_local = frame.to_local(ls.wi);
+                    // Reflection must stay on the geometric side of the
+                    // viewer, transmission cross it (no light leaks through
+                    // shading normals).
+                    let same_side = si.n.dot(ls.wi) * si.n.dot(wo) > 0.0;
+                    let f = if same_side == (wi_local.z * wo_local.z > 0.0) {
+                        bsdf.eval(wo_local, wi_local) * wi_local.z.abs()
+                    } else {
+                        Color::ZERO
+                    };
+                    if f != Color::ZERO {
+                        let shadow = match ls.target {
+                            Some(t) => Ray::spawn_to(si.p, si.p_err, si.n, t),
+                            None => Ray::spawn(si.p, si.p_err, si.n, ls.wi),
+                        };
+                        counters.rays.shadow += 1;
+                        if !scene.occluded(&shadow, &mut counters.trace) {
+                            let p_light = pmf * ls.pdf;
+                            let w = if ls.delta {
+                                1.0
+                            } else {
+                                power_heuristic(p_light, bsdf.pdf(wo_local, wi_local))
+                            };
+                            let contribution = beta * f * ls.li * (w / p_light);
+                            rec.shadow(scene, index, &shadow, Color::ONE, None, contribution);
+                            l += contribution;
+                        }
+                    }
+                }
+            }
+
+            // Continue the path by sampling the BSDF.
+            let Some(bs) = bsdf.sample(wo_local, u_lobe, u_bsdf) else {
+                break;
+            };
+            let wi = frame.to_world(bs.wi).normalize();
+            // A sampled direction must leave on the side it claims.
+            if (si.n.dot(wi) * si.n.dot(wo) > 0.0) == bs.transmitted {
+                break;
+            }
+            beta *= bs.weight();
+            specular = bs.delta;
+            prev_pdf = bs.pdf;
+            prev_p = si.p;
+            if bs.transmitted {
+                if let MaterialKind::Dielectric { ior, .. } = material.kind {
+                    eta_scale *= if front { ior * ior } else { 1.0 / (ior * ior) };
+                }
+                counters.rays.refraction += 1;
+            } else {
+                counters.rays.reflection += 1;
+            }
+            if !beta.is_finite() || beta == Color::ZERO {
+                break;
+            }
+            ray = Ray::spawn(si.p, si.p_err, si.n, wi);
+            rec.begin(
+                if bs.transmitted {
+                    RayKind::Refraction
+                } else {
+                    RayKind::Reflection
+                },
+                &ray,
+                beta,
+            );
+
+            // Russian roulette.
+            if depth >= self.rr_depth {
+                let q = (beta * eta_scale).max_element().min(0.95);
+                if sampler.next_1d() >= q {
+                    break;
+                }
+                beta /= q;
+            }
+        }
+        rec.end(Color::ZERO, Color::ONE, l);
+        l
+    }
+}

@@ -1,0 +1,78 @@
+//! Appel's ray casting.
+
+use super::whitted::local_shading;
+use super::{Counters, Integrator, NoRecord, RayKind, Recorder, face_forward, intersect};
+use crate::math::{Color, Ray};
+use crate::render::explain::RayTree;
+use crate::render::sampler::PixelSampler;
+use crate::scene::Scene;
+
+/// Appel's ray casting: the first hit along the eye ray, shaded by the local
+/// terms of its material with a shadow ray to each light. No secondary rays.
+/// Area lights get `light_samples` shadow rays (see [`super::Whitted`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Raycast {
+    pub light_samples: u32,
+}
+
+impl Default for Raycast {
+    fn default() -> Self {
+        Raycast { light_samples: 16 }
+    }
+}
+
+impl Integrator for Raycast {
+    fn radiance(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+    ) -> Color {
+        self.trace(scene, ray, sampler, counters, &mut NoRecord)
+    }
+
+    fn radiance_explained(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        tree: &mut RayTree,
+    ) -> Color {
+        self.trace(scene, ray, sampler, counters, tree)
+    }
+}
+
+impl Raycast {
+    fn trace<R: Recorder>(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        rec: &mut R,
+    ) -> Color {
+        rec.begin(RayKind::Camera, ray, Color::ONE);
+        let hit = intersect(scene, ray, counters, rec);
+        let Some(hit) = hit else {
+            rec.end(scene.background, Color::ONE, scene.background);
+            return scene.background;
+        };
+        let si = scene.surface(ray, &hit);
+        let wo = -ray.d.normalize();
+        let n_facing = face_forward(si.ns, face_forward(si.n, wo));
+        let l = local_shading(
+            scene,
+            &si,
+            wo,
+            n_facing,
+            self.light_samples,
+            sampler,
+            counters,
+            rec,
+        );
+        rec.end(l, Color::ONE, l);
+        l
+    }
+}

@@ -1,0 +1,347 @@
+//! The closed set of BSDFs, evaluated and sampled in the local shading frame.
+//!
+//! Conventions (as pbrt-v4): `wo` and `wi` both point away from the surface;
+//! `z` is the shading normal, which for a dielectric points to the outside
+//! (the side of index 1). [`Bsdf::eval`] is `f(ωo, ωi)` without the cosine;
+//! [`Bsdf::pdf`] a density over solid angle of `ωi`. Radiance flows from
+//! `ωi` to `ωo` (camera paths), so refraction scales by `1/η²`.
+
+use super::fresnel::{fr_conductor, fr_dielectric, refract_eta, schlick};
+use super::microfacet::Ggx;
+use crate::math::{Color, Vec3};
+use std::f32::consts::{FRAC_1_PI, PI};
+
+/// How a conductor's reflectance depends on the angle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ConductorFresnel {
+    /// The same reflectance at every angle (Whitted's mirror; `1` is the
+    /// perfect conductor of white-furnace tests).
+    Constant(Color),
+    /// A metal of complex index `η + i·k` ([`fr_conductor`]).
+    Complex { eta: Color, k: Color },
+    /// Schlick's approximation from the reflectance at normal incidence.
+    Schlick(Color),
+}
+
+impl ConductorFresnel {
+    #[inline]
+    pub fn eval(&self, cos: f32) -> Color {
+        match *self {
+            ConductorFresnel::Constant(r) => r,
+            ConductorFresnel::Complex { eta, k } => fr_conductor(cos, eta, k),
+            ConductorFresnel::Schlick(f0) => schlick(f0, cos),
+        }
+    }
+}
+
+/// A BSDF at a surface point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Bsdf {
+    /// Lambert: `f = ρ/π` on the side the light and viewer share.
+    Diffuse { albedo: Color },
+    /// Reflection only, from a GGX microfacet surface (Cook–Torrance with
+    /// Walter 2007's normalisation): `f = D(ωm) F(ωo·ωm) G2(ωo, ωi) /
+    /// (4 |cos θo| |cos θi|)` with `ωm` the half vector; a perfect mirror
+    /// (`f = F/|cos θi|` on the mirror direction) when smooth.
+    Conductor { fresnel: ConductorFresnel, ggx: Ggx },
+    /// An interface to a medium of relative index `eta` (inside over
+    /// outside), rough after Walter et al. 2007 (reflection and refraction
+    /// chosen by the Fresnel reflectance), a delta pair when smooth.
+    Dielectric { eta: f32, ggx: Ggx },
+}
+
+/// A direction sampled from a BSDF.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BsdfSample {
+    /// The sampled incident direction (local frame).
+    pub wi: Vec3,
+    /// `f(ωo, ωi)`; for a delta lobe, the weight the delta multiplies.
+    pub f: Color,
+    /// The density of `wi` (solid angle); for a delta lobe, the probability
+    /// of choosing it.
+    pub pdf: f32,
+    /// Whether `wi` came from a delta lobe (then light sampling cannot find
+    /// it, and no multiple importance weight applies).
+    pub delta: bool,
+    /// Whether `wi` crossed the surface.
+    pub transmitted: bool,
+}
+
+impl BsdfSample {
+    /// The factor this sample multiplies a path's throughput by:
+    /// `f |cos θi| / pdf`.
+    #[inline]
+    pub fn weight(&self) -> Color {
+        self.f * (self.wi.z.abs() / self.pdf)
+    }
+}
+
+/// `w` mirrored below the surface when `flip`.
+#[inline]
+fn flip_z(w: Vec3, flip: bool) -> Vec3 {
+    if flip { Vec3::new(w.x, w.y, -w.z) } else { w }
+}
+
+/// A cosine-weighted direction on the upper hemisphere (Malley's method:
+/// a uniform point of the unit disc, lifted), density `cos θ/π`.
+#[inline]
+pub fn cosine_hemisphere(u: (f32, f32)) -> Vec3 {
+    let r = u.0.sqrt();
+    let phi = 2.0 * PI * u.1;
+    let (x, y) = (r * phi.cos(), r * phi.sin());
+    Vec3::new(x, y, (1.0 - x * x - y * y).max(0.0).sqrt())
+}
+
+impl Bsdf {
+    /// Whether every lobe is a delta (smooth mirror or glass): such a BSDF
+    /// is never sampled by lights.
+    #[inline]
+    pub fn is_delta(&self) -> bool {
+        match self {
+            Bsdf::Diffuse { .. } => false,
+            Bsdf::Conductor { ggx, .. } | Bsdf::Dielectric { ggx, .. } => ggx.is_smooth(),
+        }
+    }
+
+    /// Whether light can pass through the surface.
+    #[inline]
+    pub fn transmits(&self) -> bool {
+        matches!(self, Bsdf::Dielectric { .. })
+    }
+
+    /// `f(ωo, ωi)` (zero for delta lobes).
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Color {
+        match *self {
+            Bsdf::Diffuse { albedo } => {
+                if wo.z * wi.z > 0.0 {
+                    albedo * FRAC_1_PI
+                } else {
+                    Color::ZERO
+                }
+            }
+            Bsdf::Conductor { fresnel, ggx } => {
+                if ggx.is_smooth() || wo.z * wi.z <= 0.0 {
+                    return Color::ZERO;
+                }
+                let flip = wo.z < 0.0;
+                let (wo, wi) = (flip_z(wo, flip), flip_z(wi, flip));
+                let Some(wm) = (wo + wi).try_normalize() else {
+                    return Color::ZERO;
+                };
+                let f = fresnel.eval(wo.dot(wm).abs());
+                f * (ggx.d(wm) * ggx.g(wo, wi) / (4.0 * wo.z * wi.z))
+            }
+            Bsdf::Dielectric { eta, ggx } => {
+                if ggx.is_smooth() {
+                    return Color::ZERO;
+                }
+                Color::splat(dielectric_eval(eta, &ggx, wo, wi))
+            }
+        }
+    }
+
+    /// The density with which [`Bsdf::sample`] picks `wi` (zero for delta
+    /// lobes).
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        match *self {
+            Bsdf::Diffuse { .. } => {
+                if wo.z * wi.z > 0.0 {
+                    wi.z.abs() * FRAC_1_PI
+                } else {
+                    0.0
+                }
+            }
+            Bsdf::Conductor { ggx, .. } => {
+                if ggx.is_smooth() || wo.z * wi.z <= 0.0 {
+                    return 0.0;
+                }
+                let flip = wo.z < 0.0;
+                let (wo, wi) = (flip_z(wo, flip), flip_z(wi, flip));
+                let Some(wm) = (wo + wi).try_normalize() else {
+                    return 0.0;
+                };
+                // Reflection maps ωm to ωi with Jacobian 1/(4 |ωo·ωm|).
+                ggx.d_visible(wo, wm) / (4.0 * wo.dot(wm).abs())
+            }
+            Bsdf::Dielectric { eta, ggx } => {
+                if ggx.is_smooth() {
+                    return 0.0;
+                }
+                dielectric_pdf(eta, &ggx, wo, wi)
+            }
+        }
+    }
+
+    /// Samples `wi` given `wo`, with `uc` choosing a lobe and `u` a
+    /// direction within it. `None` where no direction carries light (the
+    /// sampled microfacet sends it below the surface, say).
+    pub fn sample(&self, wo: Vec3, uc: f32, u: (f32, f32)) -> Option<BsdfSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        match *self {
+            Bsdf::Diffuse { albedo } => {
+                let wi = flip_z(cosine_hemisphere(u), wo.z < 0.0);
+                let pdf = wi.z.abs() * FRAC_1_PI;
+                (pdf > 0.0).then_some(BsdfSample {
+                    wi,
+                    f: albedo * FRAC_1_PI,
+                    pdf,
+                    delta: false,
+                    transmitted: false,
+                })
+            }
+            Bsdf::Conductor { fresnel, ggx } => {
+                let flip = wo.z < 0.0;
+                let wo = flip_z(wo, flip);
+                if ggx.is_smooth() {
+                    let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+                    return Some(BsdfSample {
+                        wi: flip_z(wi, flip),
+                        f: fresnel.eval(wo.z) / wo.z,
+                        pdf: 1.0,
+                        delta: true,
+                        transmitted: false,
+                    });
+                }
+                let wm = ggx.sample_visible(wo, u);
+                let wi = 2.0 * wo.dot(wm) * wm - wo;
+                if wi.z <= 0.0 {
+                    return None;
+                }
+                let pdf = ggx.d_visible(wo, wm) / (4.0 * wo.dot(wm).abs());
+                let f = fresnel.eval(wo.dot(wm).abs())
+                    * (ggx.d(wm) * ggx.g(wo, wi) / (4.0 * wo.z * wi.z));
+                (pdf > 0.0 && pdf.is_finite()).then_some(BsdfSample {
+                    wi: flip_z(wi, flip),
+                    f,
+                    pdf,
+                    delta: false,
+                    transmitted: false,
+                })
+            }
+            Bsdf::Dielectric { eta, ggx } => dielectric_sample(eta, &ggx, wo, uc, u),
+        }
+    }
+}
+
+/// The generalised half vector of Walter et al. 2007 (eq. 16) for `wo`,
+/// `wi`, oriented to `+z`, with the relative index `η'` of the crossing
+/// (`1` for reflection). `None` for degenerate configurations and for
+/// microfacets seen from behind by either direction.
+#[inline]
+fn half_vector(eta: f32, wo: Vec3, wi: Vec3) -> Option<(Vec3, f32, bool)> {
+    let (cos_o, cos_i) = (wo.z, wi.z);
+    if cos_o == 0.0 || cos_i == 0.0 {
+        return None;
+    }
+    let reflect = cos_o * cos_i > 0.0;
+    let etap = if reflect {
+        1.0
+    } else if cos_o > 0.0 {
+        eta
+    } else {
+        1.0 / eta
+    };
+    let wm = (wi * etap + wo).try_normalize()?;
+    let wm = if wm.z < 0.0 { -wm } else { wm };
+    // Both directions must see the microfacet from its own side.
+    if wm.dot(wi) * cos_i < 0.0 || wm.dot(wo) * cos_o < 0.0 {
+        return None;
+    }
+    Some((wm, etap, reflect))
+}
+
+/// Rough dielectric `f` (Walter et al. 2007, eqs. 20 and 21):
+/// reflection `D F G2 / (4 |cos θo cos θi|)`, transmission
+/// `D (1 − F) G2 |ωi·ωm| |ωo·ωm| / (|cos θo cos θi| (ωi·ωm + ωo·ωm/η')²) / η'²`.
+fn dielectric_eval(eta: f32, ggx: &Ggx, wo: Vec3, wi: Vec3) -> f32 {
+    let Some((wm, etap, reflect)) = half_vector(eta, wo, wi) else {
+        return 0.0;
+    };
+    let f = fr_dielectric(wo.dot(wm), eta);
+    let (cos_o, cos_i) = (wo.z, wi.z);
+    if reflect {
+        return ggx.d(wm) * ggx.g(wo, wi) * f / (4.0 * cos_o * cos_i).abs();
+    }
+    let denom = (wi.dot(wm) + wo.dot(wm) / etap).powi(2) * cos_i * cos_o;
+    let ft = ggx.d(wm) * (1.0 - f) * ggx.g(wo, wi) * (wi.dot(wm) * wo.dot(wm) / denom).abs();
+    ft / (etap * etap)
+}
+
+/// The density of [`dielectric_sample`]: the visible-normal density times
+/// the Jacobian of reflection (`1/(4|ωo·ωm|)`) or refraction
+/// (`|ωi·ωm|/(ωi·ωm + ωo·ωm/η')²`), times the probability of the lobe.
+fn dielectric_pdf(eta: f32, ggx: &Ggx, wo: Vec3, wi: Vec3) -> f32 {
+    let Some((wm, etap, reflect)) = half_vector(eta, wo, wi) else {
+        return 0.0;
+    };
+    let r = fr_dielectric(wo.dot(wm), eta);
+    let t = 1.0 - r;
+    if reflect {
+        ggx.d_visible(wo, wm) / (4.0 * wo.dot(wm).abs()) * r
+    } else {
+        let denom = (wi.dot(wm) + wo.dot(wm) / etap).powi(2);
+        ggx.d_visible(wo, wm) * wi.dot(wm).abs() / denom * t
+    }
+}
+
+fn dielectric_sample(eta: f32, ggx: &Ggx, wo: Vec3, uc: f32, u: (f32, f32)) -> Option<BsdfSample> {
+    if ggx.is_smooth() {
+        let r = fr_dielectric(wo.z, eta);
+        let t = 1.0 - r;
+        if uc < r {
+            let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+            return Some(BsdfSample {
+                wi,
+                f: Color::splat(r / wi.z.abs()),
+                pdf: r,
+                delta: true,
+                transmitted: false,
+            });
+        }
+        let (wi, etap) = refract_eta(wo, Vec3::Z, eta)?;
+        if wi.z == 0.0 {
+            return None;
+        }
+        return Some(BsdfSample {
+            wi,
+            f: Color::splat(t / wi.z.abs() / (etap * etap)),
+            pdf: t,
+            delta: true,
+            transmitted: true,
+        });
+    }
+    // A visible microfacet normal (z > 0; for wo inside, one seen from
+    // the inside). Fresnel and refraction take the side from wo·ωm.
+    let wm = ggx.sample_visible(wo, u);
+    let r = fr_dielectric(wo.dot(wm), eta);
+    if uc < r {
+        let wi = 2.0 * wo.dot(wm) * wm - wo;
+        if wo.z * wi.z <= 0.0 {
+            return None;
+        }
+        let pdf = dielectric_pdf(eta, ggx, wo, wi);
+        let f = dielectric_eval(eta, ggx, wo, wi);
+        return (pdf > 0.0).then_some(BsdfSample {
+            wi,
+            f: Color::splat(f),
+            pdf,
+            delta: false,
+            transmitted: false,
+        });
+    }
+    let (wi, _) = refract_eta(wo, wm, eta)?;
+    if wo.z * wi.z >= 0.0 || wi.z == 0.0 {
+        return None;
+    }
+    let pdf = dielectric_pdf(eta, ggx, wo, wi);
+    let f = dielectric_eval(eta, ggx, wo, wi);
+    (pdf > 0.0).then_some(BsdfSample {
+        wi,
+        f: Color::splat(f),
+        pdf,
+        delta: false,
+        transmitted: true,
+    })
+}
