@@ -85,6 +85,20 @@ struct RenderArgs {
     /// casting; soft shadows).
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=MAX_LIGHT_SAMPLES as i64))]
     light_samples: Option<u32>,
+    /// Render progressively in passes of whole samples per pixel until this
+    /// many seconds of rendering (stopping at the end of a pass; --spp, if
+    /// given, is then the most samples taken). The stats and the EXR record
+    /// the samples reached.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    time: Option<f64>,
+    /// Path tracing: find light by `mis` (light and BSDF sampling combined,
+    /// the default), `light` or `bsdf` sampling alone.
+    #[arg(long, value_parser = parse_sampling)]
+    sampling: Option<glint::settings::Sampling>,
+    /// Scale each sample down to at most this radiance in its largest
+    /// channel (biased; off by default).
+    #[arg(long, value_parser = parse_clamp)]
+    clamp: Option<f32>,
     /// Rays whose weight falls below this are not traced (Whitted).
     #[arg(long, value_parser = parse_weight)]
     min_weight: Option<f32>,
@@ -246,6 +260,24 @@ struct SlurmArgs {
 
 fn parse_integrator(s: &str) -> Result<IntegratorKind, String> {
     s.parse()
+}
+
+fn parse_sampling(s: &str) -> Result<glint::settings::Sampling, String> {
+    s.parse()
+}
+
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x > 0.0 && x <= 1e7 => Ok(x),
+        _ => Err(format!("`{s}` is not a number of seconds above 0")),
+    }
+}
+
+fn parse_clamp(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(x) if x > 0.0 && x.is_finite() => Ok(x),
+        _ => Err(format!("`{s}` is not a positive number")),
+    }
 }
 
 /// Whether SCENE names a mesh file rather than a scene file.
@@ -443,6 +475,15 @@ fn run_render(args: RenderArgs) -> Result<()> {
     if let Some(n) = args.light_samples {
         settings.light_samples = n;
     }
+    if let Some(m) = args.sampling {
+        settings.sampling = m;
+    }
+    if let Some(c) = args.clamp {
+        settings.clamp = Some(c);
+    }
+    if args.time.is_some() && args.spp.is_none() {
+        settings.spp = MAX_SPP;
+    }
     settings.crop = args.crop;
     if let (Some((n, m)), Some(k)) = (args.tiles, args.tile_index) {
         let tile = Rect::tile(settings.width, settings.height, n, m, k);
@@ -508,7 +549,13 @@ fn run_render(args: RenderArgs) -> Result<()> {
         keep_sums: ImageFormat::from_path(&output) == Some(ImageFormat::Exr),
         aovs,
     };
-    let (mut film, mut stats) = render::render_film(&scene, &settings, &options, &|n| bar.inc(n))?;
+    let (mut film, mut stats) = match args.time {
+        Some(seconds) => {
+            bar.set_length(pixels * settings.spp as u64);
+            render::render_timed(&scene, &settings, &options, seconds, &|n| bar.inc(n))?
+        }
+        None => render::render_film(&scene, &settings, &options, &|n| bar.inc(n))?,
+    };
     bar.finish_and_clear();
     stats.seconds_load = seconds_load;
     film.header.fingerprint = fingerprint;

@@ -60,6 +60,47 @@ impl fmt::Display for IntegratorKind {
     }
 }
 
+/// How the path integrator finds light at a vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Sampling {
+    /// Light sampling and BSDF sampling, combined by multiple importance
+    /// sampling (the power heuristic).
+    #[default]
+    Mis,
+    /// Light sampling only (emitters that lights cannot sample are still
+    /// found by the path).
+    Light,
+    /// BSDF sampling only: light is found only where paths hit emitters.
+    Bsdf,
+}
+
+impl Sampling {
+    pub const NAMES: [&'static str; 3] = ["mis", "light", "bsdf"];
+    const ALL: [Sampling; 3] = [Sampling::Mis, Sampling::Light, Sampling::Bsdf];
+
+    pub fn name(self) -> &'static str {
+        Self::NAMES[Self::ALL.iter().position(|k| *k == self).unwrap_or(0)]
+    }
+}
+
+impl std::str::FromStr for Sampling {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::NAMES
+            .iter()
+            .position(|n| *n == s)
+            .map(|i| Self::ALL[i])
+            .ok_or_else(|| {
+                format!(
+                    "unknown sampling `{s}`; expected one of: {}",
+                    Self::NAMES.join(", ")
+                )
+            })
+    }
+}
+
 /// Render settings. Defaults: 640×480, 1 sample per pixel, Whitted, depth 8,
 /// weight threshold 1e-3, all cores.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -77,6 +118,11 @@ pub struct RenderSettings {
     /// Shadow rays to the area lights per shading point (Whitted and ray
     /// casting: soft shadows).
     pub light_samples: u32,
+    /// How the path integrator finds light (see [`Sampling`]).
+    pub sampling: Sampling,
+    /// Each sample's radiance is scaled down to at most this in its largest
+    /// channel (a biased cure for fireflies); `None`: no clamping.
+    pub clamp: Option<f32>,
     /// A secondary ray is not traced when its weight (the factor its radiance is
     /// multiplied by on the way to the pixel, largest channel) is below this.
     pub min_weight: f32,
@@ -100,6 +146,8 @@ impl Default for RenderSettings {
             spp: 1,
             max_depth: 8,
             light_samples: 16,
+            sampling: Sampling::Mis,
+            clamp: None,
             min_weight: 1e-3,
             integrator: IntegratorKind::Whitted,
             threads: 0,
@@ -173,6 +221,11 @@ impl RenderSettings {
                 "max_depth {} is not −1 (no limit) or 0 to {MAX_DEPTH}",
                 self.max_depth
             ));
+        }
+        if let Some(c) = self.clamp
+            && !(c > 0.0 && c.is_finite())
+        {
+            return Err(format!("clamp {c} is not a positive number"));
         }
         if self.light_samples > MAX_LIGHT_SAMPLES {
             return Err(format!(

@@ -103,6 +103,90 @@ pub fn render_with<I: Integrator>(
     options: &FilmOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Film, RenderStats), RenderError> {
+    let (film, counters, threads, seconds) =
+        render_pass(scene, settings, integrator, options, progress)?;
+    Ok((film, render_stats(settings, &counters, threads, seconds)))
+}
+
+/// Renders `settings` in passes of whole samples per pixel (1, 1, 2, 4, 8,
+/// then 16 at a time) until `settings.spp` are done or the next pass would
+/// end after `seconds` (at least one pass is rendered). Passes are exact
+/// sample ranges merged exactly, so the result is the render of the samples
+/// reached (`film.header.samples` and `stats.spp` say how many), bit for bit.
+pub fn render_timed(
+    scene: &Scene,
+    settings: &RenderSettings,
+    options: &FilmOptions,
+    seconds: f64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Film, RenderStats), RenderError> {
+    settings.validate().map_err(RenderError::Settings)?;
+    let integrator = AnyIntegrator::new(settings);
+    let start = Instant::now();
+    let pass_options = FilmOptions {
+        keep_sums: true,
+        ..options.clone()
+    };
+    let mut merger: Option<parts::Merger> = None;
+    let mut total = TileCounters::default();
+    let mut threads = 1;
+    let mut done = 0u32;
+    let mut pass = 1u32;
+    while done < settings.spp {
+        let count = pass.min(settings.spp - done);
+        let pass_settings = RenderSettings {
+            spp: count,
+            sample_offset: settings.sample_offset + done,
+            ..settings.clone()
+        };
+        // Progress in pixel-samples.
+        let scaled = |n: u64| progress(n * count as u64);
+        let (film, counters, t, _) =
+            render_pass(scene, &pass_settings, &integrator, &pass_options, &scaled)?;
+        threads = t;
+        total += counters;
+        let merged = merger.get_or_insert_with(|| {
+            let mut header = film.header.clone();
+            header.samples = settings.samples();
+            parts::Merger::new(header).expect("the film of one pass was allocated")
+        });
+        merged.add(&film);
+        done += count;
+        // Passes double the samples so far (power-of-two prefixes are the
+        // best stratified), 16 at most.
+        let next = done.min(16);
+        let elapsed = start.elapsed().as_secs_f64();
+        if elapsed + elapsed / done as f64 * next.min(settings.spp - done) as f64 > seconds {
+            break;
+        }
+        pass = next;
+    }
+    let seconds_render = start.elapsed().as_secs_f64();
+    let mut merger = merger.expect("at least one pass is rendered");
+    merger.set_sample_count(done);
+    let mut film = merger.finish();
+    if !options.keep_sums {
+        film.sums = Vec::new();
+    }
+    let reached = RenderSettings {
+        spp: done,
+        ..settings.clone()
+    };
+    Ok((
+        film,
+        render_stats(&reached, &total, threads, seconds_render),
+    ))
+}
+
+/// One render of `settings`: the film, the work done, the threads used and
+/// the seconds it took.
+fn render_pass<I: Integrator>(
+    scene: &Scene,
+    settings: &RenderSettings,
+    integrator: &I,
+    options: &FilmOptions,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Film, TileCounters, usize, f64), RenderError> {
     settings.validate().map_err(RenderError::Settings)?;
     let keep_sums = options.keep_sums;
     let keep_aovs = !options.aovs.is_empty();
@@ -176,9 +260,19 @@ pub fn render_with<I: Integrator>(
             pool.install(|| render_tiles(scene, settings, integrator, progress, &mut film));
         (counters, settings.threads)
     };
-    let seconds_render = start.elapsed().as_secs_f64();
+    Ok((film, counters, threads, start.elapsed().as_secs_f64()))
+}
+
+/// The statistics of a render of `settings` that did the work `counters`.
+fn render_stats(
+    settings: &RenderSettings,
+    counters: &TileCounters,
+    threads: usize,
+    seconds_render: f64,
+) -> RenderStats {
+    let rect = settings.rect();
     let rays_total = counters.rays.total();
-    let stats = RenderStats {
+    RenderStats {
         width: settings.width,
         height: settings.height,
         crop: [rect.x0, rect.x1, rect.y0, rect.y1],
@@ -192,6 +286,7 @@ pub fn render_with<I: Integrator>(
         rays: counters.rays,
         rays_total,
         rays_per_second: rays_total as f64 / seconds_render.max(1e-9),
+        samples_per_second: counters.rays.camera as f64 / seconds_render.max(1e-9),
         intersection_tests: counters.intersection_tests,
         implicit_searches: counters.implicit_searches,
         implicit_evaluations: counters.implicit_evaluations,
@@ -207,8 +302,7 @@ pub fn render_with<I: Integrator>(
         bad_samples: counters.bad_samples,
         ray_trees_cut: counters.ray_trees_cut,
         implicit_searches_cut: counters.implicit_searches_cut,
-    };
-    Ok((film, stats))
+    }
 }
 
 /// A tile: its top-left pixel (in the frame) and, row by row, the slices of
@@ -345,7 +439,14 @@ fn render_tile<I: Integrator>(
                         .ray(x as f32 + u, y as f32 + v, settings.width, settings.height);
                 counters.rays.camera += 1;
                 let mut sampler = pixel_samples.sampler(index as u32);
-                let l = integrator.radiance(scene, &ray, &mut sampler, &mut counters);
+                let mut l = integrator.radiance(scene, &ray, &mut sampler, &mut counters);
+                // The explicit, optional clamp (off by default).
+                if let Some(c) = settings.clamp {
+                    let m = l.max_element();
+                    if m > c {
+                        l *= c / m;
+                    }
+                }
                 // Guard: no NaN or infinity reaches a pixel; count them
                 // instead. Sums are exact and clamped, so every pixel stays
                 // finite.

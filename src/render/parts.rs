@@ -325,6 +325,12 @@ impl Merger {
         }
     }
 
+    /// Declares that the merged samples are the first `count` of the planned
+    /// range (a progressive render that stopped early).
+    pub fn set_sample_count(&mut self, count: u32) {
+        self.header.samples.count = count;
+    }
+
     /// The merged film; its means computed from the summed sums.
     pub fn finish(self) -> Film {
         let count = self.header.samples.count as u64;

@@ -74,6 +74,8 @@ pub struct RenderStats {
     pub rays: RayCounts,
     pub rays_total: u64,
     pub rays_per_second: f64,
+    /// Camera samples (paths, for the path integrator) per second.
+    pub samples_per_second: f64,
     /// Ray–shape intersection tests, all ray kinds.
     pub intersection_tests: u64,
     /// Root searches on implicit surfaces (rays that entered their bounds).

@@ -35,7 +35,7 @@ use crate::geometry::Implicit;
 use crate::geometry::implicit::ImplicitError;
 use crate::math::{Aabb, Color, Transform, Vec3};
 use crate::settings::{
-    IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_LIGHT_SAMPLES, MAX_SPP, RenderSettings,
+    IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_LIGHT_SAMPLES, MAX_SPP, RenderSettings, Sampling,
 };
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -496,6 +496,18 @@ fn read_document(
         )?;
         if let Some(name) = f.choice("integrator", &IntegratorKind::NAMES)? {
             settings.integrator = IntegratorKind::from_name(name).unwrap_or_default();
+        }
+        if let Some(name) = f.choice("sampling", &Sampling::NAMES)? {
+            settings.sampling = name.parse().unwrap_or_default();
+        }
+        if let Some(c) = f.opt("clamp", Ctx::number)? {
+            if !(c > 0.0 && c.is_finite()) {
+                return Err(ctx.error(
+                    f.table.get("clamp").map_or(0..0, |v| v.span()),
+                    format!("expected a positive number for `clamp`, found {c}"),
+                ));
+            }
+            settings.clamp = Some(c);
         }
         background = f.opt("background", Ctx::color)?.unwrap_or(background);
         ambient = f.opt("ambient", Ctx::color)?.unwrap_or(ambient);

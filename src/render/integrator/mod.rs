@@ -85,6 +85,7 @@ impl AnyIntegrator {
             IntegratorKind::Path => AnyIntegrator::Path(Path {
                 max_depth: settings.depth_limit(),
                 rr_depth: 5,
+                sampling: settings.sampling,
             }),
         }
     }

@@ -27,11 +27,18 @@ use crate::shading::{Frame, bsdf_at};
 ///
 /// Rays that leave the scene see the environment (the background colour),
 /// which is a light too.
+///
+/// `sampling` can switch off either strategy (for comparisons such as
+/// Veach's glossy plates): light sampling alone still finds emitters behind
+/// delta BSDFs, BSDF sampling alone never samples lights.
 #[derive(Clone, Copy, Debug)]
 pub struct Path {
     pub max_depth: u32,
     pub rr_depth: u32,
+    pub sampling: Sampling,
 }
+
+pub use crate::settings::Sampling;
 
 impl Integrator for Path {
     fn radiance(
@@ -67,6 +74,18 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
 }
 
 impl Path {
+    /// The weight of light found by BSDF sampling (density `p_bsdf`) that
+    /// light sampling finds with density `p_light`.
+    #[inline]
+    fn bsdf_weight(&self, p_bsdf: f32, p_light: f32) -> f32 {
+        match self.sampling {
+            Sampling::Mis => power_heuristic(p_bsdf, p_light),
+            // Light sampling covers what it can sample.
+            Sampling::Light => (p_light == 0.0) as u32 as f32,
+            Sampling::Bsdf => 1.0,
+        }
+    }
+
     fn trace<R: Recorder>(
         &self,
         scene: &Scene,
@@ -99,7 +118,7 @@ impl Path {
                     } else {
                         let p_light =
                             emitters.select.pmf(env as usize) * light.pdf_li(prev_p, ray.d, prev_p);
-                        power_heuristic(prev_pdf, p_light)
+                        self.bsdf_weight(prev_pdf, p_light)
                     };
                     l += beta * le * w;
                 }
@@ -155,6 +174,7 @@ impl Path {
 
             // Next-event estimation.
             if !bsdf.is_delta()
+                && self.sampling != Sampling::Bsdf
                 && let Some((index, pmf)) = emitters.select.sample(u_light)
             {
                 let light = &emitters.lights[index];
@@ -177,10 +197,12 @@ impl Path {
                         counters.rays.shadow += 1;
                         if !scene.occluded(&shadow, &mut counters.trace) {
                             let p_light = pmf * ls.pdf;
-                            let w = if ls.delta {
-                                1.0
-                            } else {
-                                power_heuristic(p_light, bsdf.pdf(wo_local, wi_local))
+                            let w = match self.sampling {
+                                _ if ls.delta => 1.0,
+                                Sampling::Mis => {
+                                    power_heuristic(p_light, bsdf.pdf(wo_local, wi_local))
+                                }
+                                _ => 1.0,
                             };
                             let contribution = beta * f * ls.li * (w / p_light);
                             rec.shadow(scene, index, &shadow, Color::ONE, None, contribution);
