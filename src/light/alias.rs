@@ -58,6 +58,28 @@ impl AliasTable {
         self.pmf.get(i).copied().unwrap_or(0.0)
     }
 
+    /// [`AliasTable::sample`], also returning `u` remapped to a uniform
+    /// number in [0, 1) within the part of [0, 1) that chose the index, so
+    /// that one uniform number both chooses and samples (points stratified
+    /// in `u` stay stratified within each index's share).
+    #[inline]
+    pub fn sample_remapped(&self, u: f32) -> Option<(usize, f32, f32)> {
+        if self.bins.is_empty() {
+            return None;
+        }
+        let n = self.bins.len();
+        let x = u * n as f32;
+        let bin = (x as usize).min(n - 1);
+        let rest = x - bin as f32;
+        let (keep, alias) = self.bins[bin];
+        let (i, v) = if rest < keep {
+            (bin, rest / keep)
+        } else {
+            (alias as usize, (rest - keep) / (1.0 - keep))
+        };
+        Some((i, self.pmf[i], v.clamp(0.0, 1.0 - f32::EPSILON / 2.0)))
+    }
+
     /// An index for `u ∈ [0, 1)`, with its probability; `None` if empty.
     #[inline]
     pub fn sample(&self, u: f32) -> Option<(usize, f32)> {
@@ -98,6 +120,27 @@ mod tests {
             assert!((table.pmf(i) as f64 - expect).abs() < 1e-6);
         }
         assert_eq!(counts[1], 0);
+    }
+
+    #[test]
+    fn remapped_numbers_stay_uniform() {
+        let table = AliasTable::new(&[1.0, 3.0, 0.5]);
+        let n = 300_000;
+        let mut hist = [[0u32; 10]; 3];
+        for k in 0..n {
+            let u = (k as f32 + 0.5) / n as f32;
+            let (i, p, v) = table.sample_remapped(u).unwrap();
+            assert_eq!(p, table.pmf(i));
+            assert!((0.0..1.0).contains(&v));
+            hist[i][(v * 10.0) as usize] += 1;
+        }
+        for (i, h) in hist.iter().enumerate() {
+            let total: u32 = h.iter().sum();
+            for &c in h {
+                let f = c as f64 / total as f64;
+                assert!((f - 0.1).abs() < 0.01, "index {i}: {h:?}");
+            }
+        }
     }
 
     #[test]

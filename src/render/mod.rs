@@ -109,7 +109,7 @@ pub fn render_with<I: Integrator>(
 }
 
 /// Renders `settings` in passes of whole samples per pixel (1, 1, 2, 4, 8,
-/// then 16 at a time) until `settings.spp` are done or the next pass would
+/// then 4 at a time) until `settings.spp` are done or the next pass would
 /// end after `seconds` (at least one pass is rendered). Passes are exact
 /// sample ranges merged exactly, so the result is the render of the samples
 /// reached (`film.header.samples` and `stats.spp` say how many), bit for bit.
@@ -152,9 +152,10 @@ pub fn render_timed(
         });
         merged.add(&film);
         done += count;
-        // Passes double the samples so far (power-of-two prefixes are the
-        // best stratified), 16 at most.
-        let next = done.min(16);
+        // Passes double the samples so far up to 16 (power-of-two prefixes
+        // are the best stratified), then add 4 at a time, so that the time
+        // limit is met closely.
+        let next = if done < 16 { done } else { 4 };
         let elapsed = start.elapsed().as_secs_f64();
         if elapsed + elapsed / done as f64 * next.min(settings.spp - done) as f64 > seconds {
             break;

@@ -59,8 +59,9 @@ fn laine_karras_permutation(mut x: u32, seed: u32) -> u32 {
     x
 }
 
-/// Owen scrambling of a 0.32 fixed-point coordinate with `seed`.
-#[inline]
+/// Owen scrambling of a 0.32 fixed-point coordinate with `seed` (the
+/// definition [`pair_bits_reversed`] computes with fewer reversals).
+#[cfg(test)]
 pub fn owen_scramble(x: u32, seed: u32) -> u32 {
     laine_karras_permutation(x.reverse_bits(), seed).reverse_bits()
 }
@@ -110,7 +111,7 @@ const SOBOL_BYTES: [[u32; 256]; 4] = {
 /// with primitive polynomial `x + 1` (point `i` is the XOR of the direction
 /// numbers of `i`'s set bits, natural order). Every aligned block of 2^m
 /// consecutive points is a (0, m, 2)-net in base 2.
-#[inline]
+#[cfg(test)]
 pub fn sobol_2d(index: u32) -> (u32, u32) {
     let [b0, b1, b2, b3] = index.to_le_bytes();
     let y = SOBOL_BYTES[0][b0 as usize]
@@ -143,6 +144,8 @@ fn unit_f32(x: u32) -> f32 {
 pub struct PixelSampler {
     seed: u64,
     index: u32,
+    /// `index` bit-reversed, shared by every pair.
+    reversed: u32,
     /// The next dimension pair to hand out (0 is the pixel offset).
     pair: u32,
 }
@@ -153,6 +156,7 @@ impl PixelSampler {
         PixelSampler {
             seed: pixel_seed(x, y),
             index,
+            reversed: index.reverse_bits(),
             pair: 1,
         }
     }
@@ -164,8 +168,17 @@ impl PixelSampler {
     }
 
     /// The next two dimensions, in [0, 1)².
+    #[inline]
     pub fn next_2d(&mut self) -> (f32, f32) {
-        let (a, b) = pair_bits(&pair_seeds(self.seed, self.pair), self.index);
+        // The pair's three scrambles from one 64-bit hash (the pixel offset's
+        // pair, in `PixelSamples`, keeps its own three).
+        let h = mix64(self.seed ^ (self.pair as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        let seeds = [
+            h as u32,
+            (h >> 32) as u32,
+            (h.wrapping_mul(0xd6e8_feb8_6659_fd93) >> 32) as u32,
+        ];
+        let (a, b) = pair_bits_reversed(&seeds, self.reversed);
         self.pair += 1;
         (unit_f32(a), unit_f32(b))
     }
@@ -227,6 +240,7 @@ impl PixelSamples {
         PixelSampler {
             seed: self.seed,
             index,
+            reversed: index.reverse_bits(),
             pair: 1,
         }
     }
@@ -252,10 +266,43 @@ fn pair_seeds(pixel: u64, pair: u32) -> [u32; 3] {
 /// shuffled, its 2-D Sobol point, each coordinate scrambled.
 #[inline]
 fn pair_bits(seeds: &[u32; 3], index: u32) -> (u32, u32) {
-    let shuffled = owen_scramble(index, seeds[2]);
-    let (a, b) = sobol_2d(shuffled);
-    (owen_scramble(a, seeds[0]), owen_scramble(b, seeds[1]))
+    pair_bits_reversed(seeds, index.reverse_bits())
 }
+
+/// [`pair_bits`] given the index bit-reversed, with the reversals that
+/// cancel left out: the shuffled index is `rev(LK(rev(i)))`, its first
+/// Sobol coordinate `rev(shuffled)`, so that coordinate's scramble
+/// `rev(LK(rev(rev(shuffled))))` needs `shuffled` itself; the second
+/// coordinate comes bit-reversed from a table. Three reversals instead of
+/// seven; the same bits.
+#[inline]
+fn pair_bits_reversed(seeds: &[u32; 3], reversed_index: u32) -> (u32, u32) {
+    let shuffled = laine_karras_permutation(reversed_index, seeds[2]).reverse_bits();
+    let [b0, b1, b2, b3] = shuffled.to_le_bytes();
+    let b_reversed = SOBOL_BYTES_REVERSED[0][b0 as usize]
+        ^ SOBOL_BYTES_REVERSED[1][b1 as usize]
+        ^ SOBOL_BYTES_REVERSED[2][b2 as usize]
+        ^ SOBOL_BYTES_REVERSED[3][b3 as usize];
+    (
+        laine_karras_permutation(shuffled, seeds[0]).reverse_bits(),
+        laine_karras_permutation(b_reversed, seeds[1]).reverse_bits(),
+    )
+}
+
+/// [`SOBOL_BYTES`] with every entry bit-reversed.
+const SOBOL_BYTES_REVERSED: [[u32; 256]; 4] = {
+    let mut t = SOBOL_BYTES;
+    let mut byte = 0;
+    while byte < 4 {
+        let mut value = 0;
+        while value < 256 {
+            t[byte][value] = t[byte][value].reverse_bits();
+            value += 1;
+        }
+        byte += 1;
+    }
+    t
+};
 
 #[cfg(test)]
 mod tests {
@@ -264,20 +311,36 @@ mod tests {
     /// Samples `[start, start + n)` of pixel `(x, y)`: how many fall in
     /// each of the `n` cells of every elementary-interval shape of area 1/n.
     fn assert_net(x: u32, y: u32, start: u32, n: u32) {
-        let points: Vec<(f32, f32)> = (start..start + n)
-            .map(|i| PixelSampler::new(x, y, i).pixel_offset())
-            .collect();
+        // The pixel offset, and the first and third pairs after it.
+        for pair in [0, 1, 3] {
+            let points: Vec<(f32, f32)> = (start..start + n)
+                .map(|i| {
+                    let mut s = PixelSampler::new(x, y, i);
+                    if pair == 0 {
+                        return s.pixel_offset();
+                    }
+                    for _ in 1..pair {
+                        s.next_2d();
+                    }
+                    s.next_2d()
+                })
+                .collect();
+            assert_points_net(&points, x, y, start, n, pair);
+        }
+    }
+
+    fn assert_points_net(points: &[(f32, f32)], x: u32, y: u32, start: u32, n: u32, pair: u32) {
         let m = n.trailing_zeros();
         for j in 0..=m {
             let (cols, rows) = (1u32 << j, 1u32 << (m - j));
             let mut cells = vec![0u32; n as usize];
-            for &(u, v) in &points {
+            for &(u, v) in points {
                 let c = (u * cols as f32) as u32 + cols * (v * rows as f32) as u32;
                 cells[c as usize] += 1;
             }
             assert!(
                 cells.iter().all(|&c| c == 1),
-                "samples {start}..{} of ({x},{y}) are not stratified in {cols}×{rows} cells",
+                "pair {pair} of samples {start}..{} of ({x},{y}) is not stratified in {cols}×{rows} cells",
                 start + n
             );
         }
@@ -292,6 +355,20 @@ mod tests {
                 assert_net(x, y, n, n);
                 assert_net(x, y, 3 * n, n);
             }
+        }
+    }
+
+    /// The shortcut computes the definition: shuffle the index, take its
+    /// Sobol point, scramble each coordinate.
+    #[test]
+    fn pair_bits_is_the_scrambled_shuffled_sobol_point() {
+        let mut rng = Pcg32::new(11, 12);
+        for _ in 0..100_000 {
+            let seeds = [rng.next_u32(), rng.next_u32(), rng.next_u32()];
+            let index = rng.next_u32() >> (rng.next_u32() % 32);
+            let (a, b) = sobol_2d(owen_scramble(index, seeds[2]));
+            let expect = (owen_scramble(a, seeds[0]), owen_scramble(b, seeds[1]));
+            assert_eq!(pair_bits(&seeds, index), expect, "index {index}");
         }
     }
 

@@ -223,8 +223,14 @@ impl Scene {
             .map(|o| materials[o.material as usize].is_opaque())
             .collect();
         let mut bounds: Vec<Aabb> = objects.iter().map(|o| o.shape.bounds()).collect();
+        let finite = |b: &Aabb| b.min.is_finite() && b.max.is_finite();
+        let unbounded = (0..objects.len() as u32)
+            .filter(|&i| !finite(&bounds[i as usize]))
+            .collect();
+        // Merged objects are traced in the merged mesh only (their empty
+        // boxes are left out of the top-level BVH; meshes are never
+        // unbounded).
         let merged = Merged::build(&objects, &opaque).map(|(m, taken)| {
-            // Merged objects are traced in the merged mesh only.
             for (b, t) in bounds.iter_mut().zip(taken) {
                 if t {
                     *b = Aabb::EMPTY;
@@ -232,10 +238,6 @@ impl Scene {
             }
             Box::new(m)
         });
-        let finite = |b: &Aabb| b.min.is_finite() && b.max.is_finite();
-        let unbounded = (0..objects.len() as u32)
-            .filter(|&i| !finite(&bounds[i as usize]))
-            .collect();
         // Infinite boxes are left out of the BVH by its builder.
         let tlas = Bvh::build(&bounds);
         let objects_len = objects.len();

@@ -168,17 +168,20 @@ impl Path {
             };
             let frame = Frame::from_z(n_shading);
             let wo_local = frame.to_local(wo);
-            let (u_light, u_lobe) = sampler.next_2d();
+            let (u_lobe, u_rr) = sampler.next_2d();
             let u_light_pos = sampler.next_2d();
             let u_bsdf = sampler.next_2d();
 
             // Next-event estimation.
+            // One pair chooses the light (its first number, remapped) and
+            // the point on it, so that the points stay stratified over each
+            // light.
             if !bsdf.is_delta()
                 && self.sampling != Sampling::Bsdf
-                && let Some((index, pmf)) = emitters.select.sample(u_light)
+                && let Some((index, pmf, u0)) = emitters.select.sample_remapped(u_light_pos.0)
             {
                 let light = &emitters.lights[index];
-                if let Some(ls) = light.sample_li(si.p, u_light_pos) {
+                if let Some(ls) = light.sample_li(si.p, (u0, u_light_pos.1)) {
                     let wi_local = frame.to_local(ls.wi);
                     // Reflection must stay on the geometric side of the
                     // viewer, transmission cross it (no light leaks through
@@ -250,7 +253,7 @@ impl Path {
             // Russian roulette.
             if depth >= self.rr_depth {
                 let q = (beta * eta_scale).max_element().min(0.95);
-                if sampler.next_1d() >= q {
+                if u_rr >= q {
                     break;
                 }
                 beta /= q;
