@@ -138,7 +138,7 @@ impl Path {
                         let light: &Light = &emitters.lights[index as usize];
                         let p_light =
                             emitters.select.pmf(index as usize) * light.pdf_li(prev_p, ray.d, si.p);
-                        power_heuristic(prev_pdf, p_light)
+                        self.bsdf_weight(prev_pdf, p_light)
                     }
                     _ => 1.0,
                 };
