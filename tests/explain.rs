@@ -27,7 +27,11 @@ fn close(a: [f32; 3], b: [f32; 3]) -> bool {
 #[test]
 fn every_pixels_tree_adds_up_to_the_rendered_pixel() {
     let (scene, settings) = whitted(32, 24);
-    for integrator in [IntegratorKind::Whitted, IntegratorKind::Raycast] {
+    for integrator in [
+        IntegratorKind::Whitted,
+        IntegratorKind::Raycast,
+        IntegratorKind::Path,
+    ] {
         for sample in [0, 5] {
             let s = RenderSettings {
                 integrator,

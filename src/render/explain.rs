@@ -135,6 +135,7 @@ impl RayTree {
 
 impl Recorder for RayTree {
     const BLOCKERS: bool = true;
+    const RECORDS: bool = true;
 
     fn begin(&mut self, kind: RayKind, ray: &Ray, weight: Color) {
         let node = self.new_node(kind, ray, weight);

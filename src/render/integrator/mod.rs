@@ -129,6 +129,8 @@ impl Integrator for AnyIntegrator {
 pub trait Recorder {
     /// Whether shadow rays should find what blocks them (a second trace).
     const BLOCKERS: bool = false;
+    /// Whether anything is recorded (integrators may keep extra books then).
+    const RECORDS: bool = false;
     /// A camera, reflected or refracted ray starts; `weight` is the factor
     /// its radiance is multiplied by on its way to the pixel.
     #[inline]

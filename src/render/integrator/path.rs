@@ -107,7 +107,19 @@ impl Path {
         // The product of η² over refractions, for roulette (pbrt's etaScale).
         let mut eta_scale = 1.0f32;
         rec.begin(RayKind::Camera, &ray, beta);
+        // For the recorder: per ray traced, its throughput and what its hit
+        // added before that throughput (emission and light samples).
+        let mut books: Vec<(Color, Color)> = Vec::new();
+        let mut local = Color::ZERO;
         loop {
+            if R::RECORDS {
+                // The previous ray's hit is done.
+                if let Some(b) = books.last_mut() {
+                    b.1 = local;
+                }
+                books.push((beta, Color::ZERO));
+            }
+            local = Color::ZERO;
             let hit = intersect(scene, &ray, counters, rec);
             let Some(hit) = hit else {
                 if let Some(env) = emitters.environment {
@@ -121,6 +133,7 @@ impl Path {
                         self.bsdf_weight(prev_pdf, p_light)
                     };
                     l += beta * le * w;
+                    local = le * w;
                 }
                 break;
             };
@@ -143,6 +156,7 @@ impl Path {
                     _ => 1.0,
                 };
                 l += beta * le * w;
+                local += le * w;
             }
 
             // Light absorbed on the way through a dielectric.
@@ -207,9 +221,10 @@ impl Path {
                                 }
                                 _ => 1.0,
                             };
-                            let contribution = beta * f * ls.li * (w / p_light);
-                            rec.shadow(scene, index, &shadow, Color::ONE, None, contribution);
-                            l += contribution;
+                            let brought = f * ls.li * (w / p_light);
+                            rec.shadow(scene, index, &shadow, Color::ONE, None, brought);
+                            local += brought;
+                            l += beta * brought;
                         }
                     }
                 }
@@ -228,16 +243,26 @@ impl Path {
             specular = bs.delta;
             prev_pdf = bs.pdf;
             prev_p = si.p;
-            if bs.transmitted {
-                if let MaterialKind::Dielectric { ior, .. } = material.kind {
-                    eta_scale *= if front { ior * ior } else { 1.0 / (ior * ior) };
-                }
-                counters.rays.refraction += 1;
-            } else {
-                counters.rays.reflection += 1;
+            if bs.transmitted
+                && let MaterialKind::Dielectric { ior, .. } = material.kind
+            {
+                eta_scale *= if front { ior * ior } else { 1.0 / (ior * ior) };
             }
             if !beta.is_finite() || beta == Color::ZERO {
                 break;
+            }
+            // Russian roulette, before the ray is traced.
+            if depth >= self.rr_depth {
+                let q = (beta * eta_scale).max_element().min(0.95);
+                if u_rr >= q {
+                    break;
+                }
+                beta /= q;
+            }
+            if bs.transmitted {
+                counters.rays.refraction += 1;
+            } else {
+                counters.rays.reflection += 1;
             }
             ray = Ray::spawn(si.p, si.p_err, si.n, wi);
             rec.begin(
@@ -249,17 +274,20 @@ impl Path {
                 &ray,
                 beta,
             );
-
-            // Russian roulette.
-            if depth >= self.rr_depth {
-                let q = (beta * eta_scale).max_element().min(0.95);
-                if u_rr >= q {
-                    break;
-                }
-                beta /= q;
+        }
+        if R::RECORDS {
+            if let Some(b) = books.last_mut() {
+                b.1 = local;
+            }
+            // Each ray's radiance: what its hit and everything after it
+            // added, over its throughput. Rays end innermost first.
+            let mut after = Color::ZERO;
+            for &(beta, local) in books.iter().rev() {
+                after += beta * local;
+                let radiance = Color::select(beta.cmpgt(Color::ZERO), after / beta, Color::ZERO);
+                rec.end(local, Color::ONE, radiance);
             }
         }
-        rec.end(Color::ZERO, Color::ONE, l);
         l
     }
 }
