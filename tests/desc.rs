@@ -82,6 +82,7 @@ fn lit_scene(objects: Vec<ObjectDesc>) -> SceneDesc {
             irradiance: Color::ONE,
         }],
         objects,
+        environment: None,
     }
 }
 

@@ -370,3 +370,59 @@ fn integrators_render_the_new_scenes() {
         }
     }
 }
+
+/// An environment map from an EXR file: a white sphere in a map of radiance
+/// 1 everywhere vanishes (the map is importance-sampled as a light), and a
+/// map that is not there is an error naming the path tried.
+#[test]
+fn environment_map_furnace_and_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    exr::prelude::write_rgb_file(dir.path().join("white.exr"), 32, 16, |_, _| {
+        (1.0f32, 1.0f32, 1.0f32)
+    })
+    .unwrap();
+    let text = r#"
+[camera]
+position = [0, 0, -4]
+look_at = [0, 0, 0]
+fov = 30
+[render]
+width = 32
+height = 32
+spp = 16
+integrator = "path"
+max_depth = -1
+[environment]
+map = "white.exr"
+rotate_y = 40
+[materials]
+m = { type = "diffuse", color = [1, 1, 1] }
+[[object]]
+shape = "sphere"
+center = [0, 0, 0]
+radius = 1
+material = "m"
+"#;
+    let file = parse_scene(text, &dir.path().join("scene.toml")).unwrap();
+    let (image, _) = render(&file.scene, &file.settings, &|_| {}).unwrap();
+    let m = mean(&image);
+    assert!(m.iter().all(|c| (c - 1.0).abs() < 0.01), "{m:?}");
+    // Whitted sees the map where rays leave the scene.
+    let whitted = RenderSettings {
+        integrator: IntegratorKind::Whitted,
+        ..file.settings.clone()
+    };
+    let (image, _) = render(&file.scene, &whitted, &|_| {}).unwrap();
+    assert_eq!(image.pixels[0], glint::math::Color::ONE);
+
+    let missing = parse_scene(
+        &text.replace("white.exr", "nowhere.exr"),
+        &dir.path().join("scene.toml"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        missing.contains("the environment") && missing.contains("nowhere.exr"),
+        "{missing}"
+    );
+}

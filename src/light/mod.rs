@@ -8,8 +8,10 @@
 //! method, so a shading point never loops over thousands of emitters).
 
 mod alias;
+pub mod envmap;
 
 pub use alias::AliasTable;
+pub use envmap::EnvMap;
 
 use crate::geometry::Shape;
 use crate::math::{Aabb, Color, Vec3, triangle_normal};
@@ -36,6 +38,8 @@ pub enum Light {
     },
     /// Radiance `radiance` from every direction at infinity.
     Environment { radiance: Color },
+    /// Radiance from an environment map, importance-sampled.
+    EnvMap(std::sync::Arc<EnvMap>),
 }
 
 /// A flat emitter: a triangle or a parallelogram.
@@ -188,6 +192,16 @@ impl Light {
                     delta: false,
                 })
             }
+            Light::EnvMap(map) => {
+                let (wi, pdf, li) = map.sample(u)?;
+                (li != Color::ZERO).then_some(LightSample {
+                    wi,
+                    li,
+                    pdf,
+                    target: None,
+                    delta: false,
+                })
+            }
             Light::Environment { radiance } => {
                 // Uniform over the sphere.
                 let z = 1.0 - 2.0 * u.0;
@@ -230,6 +244,7 @@ impl Light {
                 1.0 / (2.0 * PI * sin2_max / (1.0 + cos_max))
             }
             Light::Environment { .. } => 1.0 / (4.0 * PI),
+            Light::EnvMap(map) => map.pdf(wi),
         }
     }
 
@@ -247,6 +262,7 @@ impl Light {
                 }
             }
             Light::Environment { radiance } => *radiance,
+            Light::EnvMap(map) => map.le(-w),
             Light::Point { .. } | Light::Directional { .. } => Color::ZERO,
         }
     }
@@ -273,6 +289,7 @@ impl Light {
                 radius, radiance, ..
             } => pi * 4.0 * pi * (*radius as f64).powi(2) * avg(*radiance),
             Light::Environment { radiance } => 4.0 * pi * pi * r2 * avg(*radiance),
+            Light::EnvMap(map) => 4.0 * pi * pi * r2 * avg(map.mean_radiance()),
         }
     }
 }
@@ -298,20 +315,22 @@ pub struct LightSet {
     /// shape cannot be sampled (planes, implicit surfaces: their light is
     /// found only by rays that hit them).
     pub object_lights: Vec<u32>,
-    /// The environment light, if the background is not black.
+    /// The environment light: the map if there is one, else the background
+    /// colour if it is not black.
     pub environment: Option<u32>,
 }
 
 impl LightSet {
     /// The lights of a scene: its point and directional lights, one area
     /// light per triangle of an emissive mesh, per face of an emissive box,
-    /// one per emissive sphere, and the environment if `background` is not
-    /// black.
+    /// one per emissive sphere, and the environment: `environment`'s map,
+    /// or else the colour `background` if it is not black.
     pub fn build(
         objects: &[Object],
         materials: &[Material],
         descs: &[LightDesc],
         background: Color,
+        environment: Option<&std::sync::Arc<EnvMap>>,
         bounds: Aabb,
     ) -> Self {
         let mut lights = Vec::new();
@@ -382,12 +401,18 @@ impl LightSet {
             }
             object_lights[i] = first;
         }
-        let environment = (background.max_element() > 0.0).then(|| {
-            lights.push(Light::Environment {
-                radiance: background,
-            });
-            lights.len() as u32 - 1
-        });
+        let environment = match environment {
+            Some(map) => {
+                lights.push(Light::EnvMap(map.clone()));
+                Some(lights.len() as u32 - 1)
+            }
+            None => (background.max_element() > 0.0).then(|| {
+                lights.push(Light::Environment {
+                    radiance: background,
+                });
+                lights.len() as u32 - 1
+            }),
+        };
         let radius = if bounds.min.is_finite() && bounds.max.is_finite() {
             0.5 * (bounds.max - bounds.min).length()
         } else {

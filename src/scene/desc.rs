@@ -15,6 +15,7 @@ use super::meshio::{Model, load_mesh_file, smooth_normals};
 use super::{Camera, Light, Material, MaterialKind, Object, Scene, SceneFile, Texture};
 use crate::geometry::implicit::{HEART_BOUNDS, HEART_FORMULA, torus_formula};
 use crate::geometry::{Cuboid, Implicit, Mesh, MeshInstance, Plane, Shape, Sphere};
+use crate::light::EnvMap;
 use crate::math::{Aabb, Color, Transform, Vec3};
 use crate::settings::RenderSettings;
 use serde::{Deserialize, Serialize};
@@ -42,6 +43,28 @@ pub struct SceneDesc {
     pub lights: Vec<Light>,
     #[serde(default)]
     pub objects: Vec<ObjectDesc>,
+    /// An environment map instead of the background colour.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment: Option<EnvironmentDesc>,
+}
+
+/// The scene file's `[environment]`: an equirectangular EXR image of the
+/// radiance arriving from every direction.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentDesc {
+    /// The EXR file, relative to the scene's folder.
+    pub map: PathBuf,
+    /// A factor on every texel.
+    #[serde(default = "one")]
+    pub scale: f32,
+    /// Degrees the map is turned about +y.
+    #[serde(default)]
+    pub rotate_y: f32,
+}
+
+fn one() -> f32 {
+    1.0
 }
 
 /// A pinhole camera: the scene file's `[camera]`.
@@ -178,6 +201,7 @@ pub enum Place {
     /// Lights and objects are numbered from 1, as in the scene file.
     Light(usize),
     Object(usize, &'static str),
+    Environment,
 }
 
 impl std::fmt::Display for Place {
@@ -189,6 +213,7 @@ impl std::fmt::Display for Place {
             Place::Material(name) => write!(f, "material `{name}`"),
             Place::Light(i) => write!(f, "light {i}"),
             Place::Object(i, kind) => write!(f, "object {i} ({kind})"),
+            Place::Environment => f.write_str("the environment"),
         }
     }
 }
@@ -283,6 +308,13 @@ impl SceneDesc {
             self.ambient,
         )
         .map_err(|e| err(Place::Scene, e.to_string()))?;
+        let scene = match &self.environment {
+            None => scene,
+            Some(e) => {
+                let map = load_environment(e, folder).map_err(|m| err(Place::Environment, m))?;
+                scene.with_environment(map)
+            }
+        };
         Ok(SceneFile {
             scene,
             settings: self.settings.clone(),
@@ -383,6 +415,22 @@ fn check_material(m: &Material) -> Result<(), String> {
         }
     }?;
     check_color(m.emission)
+}
+
+/// Reads and checks the environment map `e` names (relative to `folder`).
+fn load_environment(e: &EnvironmentDesc, folder: &Path) -> Result<EnvMap, String> {
+    if !(e.scale >= 0.0 && e.scale.is_finite()) {
+        return Err(format!("`scale` {} must be a number ≥ 0", e.scale));
+    }
+    if !e.rotate_y.is_finite() {
+        return Err("`rotate_y` must be finite".into());
+    }
+    let path = folder.join(&e.map);
+    let bytes = super::files::read_regular_file(&path)
+        .map_err(|r| format!("cannot read `{}`: {}", path.display(), r.reason()))?;
+    let (w, h, texels) =
+        crate::light::envmap::read_exr(&bytes).map_err(|m| format!("`{}`: {m}", path.display()))?;
+    EnvMap::new(w, h, texels, e.scale, e.rotate_y).map_err(|m| format!("`{}`: {m}", path.display()))
 }
 
 /// A number in [0, 1].

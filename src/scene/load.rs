@@ -26,8 +26,8 @@
 //! ```
 
 use super::desc::{
-    CameraDesc, ImplicitFormula, NamedMaterial, NamedSurface, ObjectDesc, Place, SceneDesc,
-    ShapeDesc, TransformDesc, check_camera, implicit_formula,
+    CameraDesc, EnvironmentDesc, ImplicitFormula, NamedMaterial, NamedSurface, ObjectDesc, Place,
+    SceneDesc, ShapeDesc, TransformDesc, check_camera, implicit_formula,
 };
 use super::files::{FileError, read_text_file};
 use super::{CheckerMode, Light, Material, MaterialKind, Scene, Texture};
@@ -551,6 +551,27 @@ fn read_document(
             spans.push(span);
         }
     }
+    let environment = match top.get("environment") {
+        None => None,
+        Some(v) => {
+            let mut f = Fields::of(ctx, v, "[environment]".into())?;
+            let map = PathBuf::from(f.req("map", |c, v| c.string(v))?);
+            let scale = f.checked(
+                "scale",
+                Some(1.0),
+                |x| x >= 0.0 && x.is_finite(),
+                "a number ≥ 0",
+            )?;
+            let rotate_y =
+                f.checked("rotate_y", Some(0.0), f32::is_finite, "an angle in degrees")?;
+            f.finish()?;
+            Some(EnvironmentDesc {
+                map,
+                scale,
+                rotate_y,
+            })
+        }
+    };
     top.finish()?;
 
     let desc = SceneDesc {
@@ -561,6 +582,7 @@ fn read_document(
         materials,
         lights,
         objects,
+        environment,
     };
     Ok((desc, spans))
 }

@@ -90,6 +90,9 @@ pub struct Scene {
     /// The lights the integrators sample: `lights`, the emissive objects'
     /// area lights and the environment (see [`LightSet::build`]).
     pub emitters: LightSet,
+    /// An environment map seen by rays that leave the scene, instead of
+    /// `background` (see [`Scene::with_environment`]).
+    pub environment: Option<std::sync::Arc<crate::light::EnvMap>>,
     /// Per object: does its material stop shadow rays?
     opaque: Vec<bool>,
     /// Top-level BVH over the objects with finite bounds.
@@ -246,7 +249,14 @@ impl Scene {
             .map(|o| o.shape.bounds())
             .filter(finite)
             .fold(Aabb::EMPTY, |a, b| a.union(&b));
-        let emitters = LightSet::build(&objects, &materials, &lights, background, scene_bounds);
+        let emitters = LightSet::build(
+            &objects,
+            &materials,
+            &lights,
+            background,
+            None,
+            scene_bounds,
+        );
         Ok(Scene {
             camera,
             objects,
@@ -255,12 +265,44 @@ impl Scene {
             background,
             ambient,
             emitters,
+            environment: None,
             opaque,
             tlas,
             unbounded,
             linear: objects_len <= LINEAR_OBJECTS && merged.is_none(),
             merged,
         })
+    }
+
+    /// The scene with an environment map: rays that leave it see the map,
+    /// and the path integrator samples it as a light.
+    pub fn with_environment(mut self, map: crate::light::EnvMap) -> Self {
+        let map = std::sync::Arc::new(map);
+        let bounds = self
+            .objects
+            .iter()
+            .map(|o| o.shape.bounds())
+            .filter(|b| b.min.is_finite() && b.max.is_finite())
+            .fold(Aabb::EMPTY, |a, b| a.union(&b));
+        self.emitters = LightSet::build(
+            &self.objects,
+            &self.materials,
+            &self.lights,
+            self.background,
+            Some(&map),
+            bounds,
+        );
+        self.environment = Some(map);
+        self
+    }
+
+    /// Radiance seen along a ray (unit direction `d`) that leaves the scene.
+    #[inline]
+    pub fn background_le(&self, d: Vec3) -> Color {
+        match &self.environment {
+            Some(map) => map.le(d.normalize()),
+            None => self.background,
+        }
     }
 
     /// Counts and sizes of the scene's meshes and acceleration structures.

@@ -56,8 +56,9 @@ impl Raycast {
         rec.begin(RayKind::Camera, ray, Color::ONE);
         let hit = intersect(scene, ray, counters, rec);
         let Some(hit) = hit else {
-            rec.end(scene.background, Color::ONE, scene.background);
-            return scene.background;
+            let background = scene.background_le(ray.d);
+            rec.end(background, Color::ONE, background);
+            return background;
         };
         let si = scene.surface(ray, &hit);
         let wo = -ray.d.normalize();

@@ -122,8 +122,9 @@ impl Whitted {
         rec: &mut R,
     ) -> Color {
         let Some(hit) = intersect(scene, ray, counters, rec) else {
-            rec.end(scene.background, Color::ONE, scene.background);
-            return scene.background;
+            let background = scene.background_le(ray.d);
+            rec.end(background, Color::ONE, background);
+            return background;
         };
         let si = scene.surface(ray, &hit);
         let d = ray.d.normalize();
