@@ -413,6 +413,13 @@ fn check_material(m: &Material) -> Result<(), String> {
             }
             Ok(())
         }
+        MaterialKind::Principled {
+            metallic,
+            roughness,
+        } => {
+            check_unit("metallic", metallic)?;
+            check_unit("roughness", roughness)
+        }
     }?;
     check_color(m.emission)
 }

@@ -672,6 +672,10 @@ fn read_material(ctx: &Ctx, name: &str, v: &Value) -> Result<Material> {
             absorption: f.opt("absorption", Ctx::color)?.unwrap_or(Color::ZERO),
             roughness: f.checked("roughness", Some(0.0), unit, "a number from 0 to 1")?,
         },
+        "principled" => MaterialKind::Principled {
+            metallic: f.checked("metallic", Some(0.0), unit, "a number from 0 to 1")?,
+            roughness: f.checked("roughness", Some(0.5), unit, "a number from 0 to 1")?,
+        },
         "conductor" => MaterialKind::Conductor {
             complex_ior: read_complex_ior(ctx, &mut f)?,
             roughness: f.checked("roughness", Some(0.0), unit, "a number from 0 to 1")?,
@@ -686,7 +690,7 @@ fn read_material(ctx: &Ctx, name: &str, v: &Value) -> Result<Material> {
             return Err(ctx.error(
                 kind.span(),
                 format!(
-                    "unknown material type `{other}`; expected one of: diffuse, mirror, dielectric, conductor"
+                    "unknown material type `{other}`; expected one of: diffuse, mirror, dielectric, conductor, principled"
                 ),
             ));
         }

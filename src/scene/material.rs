@@ -68,6 +68,12 @@ pub enum MaterialKind {
         #[serde(default)]
         anisotropy: f32,
     },
+    /// glTF's metallic-roughness material (the colour is the base colour):
+    /// for the `path` integrator a diffuse base under a GGX coat, blended to
+    /// a metal by `metallic` (see [`crate::shading::Bsdf::Principled`]);
+    /// Whitted's integrator shades it as diffuse, or as a mirror of the
+    /// base colour when `metallic ≥ 0.5`.
+    Principled { metallic: f32, roughness: f32 },
 }
 
 impl Material {

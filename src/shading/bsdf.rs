@@ -48,6 +48,20 @@ pub enum Bsdf {
     /// outside), rough after Walter et al. 2007 (reflection and refraction
     /// chosen by the Fresnel reflectance), a delta pair when smooth.
     Dielectric { eta: f32, ggx: Ggx },
+    /// glTF's metallic-roughness model: a Lambertian base under a GGX
+    /// dielectric coat of `F0 = 0.04`, blended towards a GGX conductor of
+    /// reflectance `base` by `metallic`. The specular lobe has Schlick's
+    /// Fresnel from `F0 = lerp(0.04, base, metallic)`; the diffuse lobe
+    /// `(1 − metallic)·base/π` is weighted by `(1 − F(cos θo))(1 − F(cos θi))`
+    /// with the coat's `F0`, the light the coat lets in and out (a
+    /// reciprocal, energy-bounded coupling as in Ashikhmin & Shirley 2000).
+    /// A lobe is sampled with probability proportional to its estimated
+    /// albedo.
+    Principled {
+        base: Color,
+        metallic: f32,
+        ggx: Ggx,
+    },
 }
 
 /// A direction sampled from a BSDF.
@@ -98,7 +112,7 @@ impl Bsdf {
     #[inline]
     pub fn is_delta(&self) -> bool {
         match self {
-            Bsdf::Diffuse { .. } => false,
+            Bsdf::Diffuse { .. } | Bsdf::Principled { .. } => false,
             Bsdf::Conductor { ggx, .. } | Bsdf::Dielectric { ggx, .. } => ggx.is_smooth(),
         }
     }
@@ -137,6 +151,19 @@ impl Bsdf {
                 }
                 Color::splat(dielectric_eval(eta, &ggx, wo, wi))
             }
+            Bsdf::Principled {
+                base,
+                metallic,
+                ggx,
+            } => {
+                if wo.z * wi.z <= 0.0 {
+                    return Color::ZERO;
+                }
+                let flip = wo.z < 0.0;
+                let (wo, wi) = (flip_z(wo, flip), flip_z(wi, flip));
+                principled_diffuse(base, metallic, wo, wi)
+                    + principled_specular(base, metallic, &ggx, wo, wi)
+            }
         }
     }
 
@@ -168,6 +195,24 @@ impl Bsdf {
                     return 0.0;
                 }
                 dielectric_pdf(eta, &ggx, wo, wi)
+            }
+            Bsdf::Principled {
+                base,
+                metallic,
+                ggx,
+            } => {
+                if wo.z * wi.z <= 0.0 {
+                    return 0.0;
+                }
+                let flip = wo.z < 0.0;
+                let (wo, wi) = (flip_z(wo, flip), flip_z(wi, flip));
+                let p_spec = principled_specular_probability(base, metallic, wo);
+                let diffuse = wi.z * FRAC_1_PI;
+                let specular = match (wo + wi).try_normalize() {
+                    Some(wm) if !ggx.is_smooth() => ggx.d_visible(wo, wm) / (4.0 * wo.dot(wm)),
+                    _ => 0.0,
+                };
+                p_spec * specular + (1.0 - p_spec) * diffuse
             }
         }
     }
@@ -221,8 +266,72 @@ impl Bsdf {
                 })
             }
             Bsdf::Dielectric { eta, ggx } => dielectric_sample(eta, &ggx, wo, uc, u),
+            Bsdf::Principled {
+                base,
+                metallic,
+                ggx,
+            } => {
+                let flip = wo.z < 0.0;
+                let wo_up = flip_z(wo, flip);
+                let p_spec = principled_specular_probability(base, metallic, wo_up);
+                let wi = if uc < p_spec {
+                    let wm = ggx.sample_visible(wo_up, u);
+                    2.0 * wo_up.dot(wm) * wm - wo_up
+                } else {
+                    cosine_hemisphere(u)
+                };
+                if wi.z <= 0.0 {
+                    return None;
+                }
+                let wi = flip_z(wi, flip);
+                let pdf = self.pdf(wo, wi);
+                (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample {
+                    wi,
+                    f: self.eval(wo, wi),
+                    pdf,
+                    delta: false,
+                    transmitted: false,
+                })
+            }
         }
     }
+}
+
+/// The coat's reflectance at normal incidence (glTF: IOR 1.5).
+const COAT_F0: f32 = 0.04;
+
+/// [`Bsdf::Principled`]'s diffuse lobe (both directions above).
+#[inline]
+fn principled_diffuse(base: Color, metallic: f32, wo: Vec3, wi: Vec3) -> Color {
+    let coat = |c: f32| 1.0 - schlick(Color::splat(COAT_F0), c).x;
+    base * ((1.0 - metallic) * FRAC_1_PI * coat(wo.z) * coat(wi.z))
+}
+
+/// [`Bsdf::Principled`]'s specular lobe (both directions above).
+#[inline]
+fn principled_specular(base: Color, metallic: f32, ggx: &Ggx, wo: Vec3, wi: Vec3) -> Color {
+    if ggx.is_smooth() {
+        return Color::ZERO;
+    }
+    let Some(wm) = (wo + wi).try_normalize() else {
+        return Color::ZERO;
+    };
+    let f0 = Color::splat(COAT_F0).lerp(base, metallic);
+    schlick(f0, wo.dot(wm)) * (ggx.d(wm) * ggx.g(wo, wi) / (4.0 * wo.z * wi.z))
+}
+
+/// The probability of sampling [`Bsdf::Principled`]'s specular lobe seen
+/// from `wo`: its Fresnel weight against the diffuse lobe's albedo.
+#[inline]
+fn principled_specular_probability(base: Color, metallic: f32, wo: Vec3) -> f32 {
+    let f0 = Color::splat(COAT_F0).lerp(base, metallic);
+    let spec = schlick(f0, wo.z).max_element();
+    let diffuse =
+        (1.0 - metallic) * base.max_element() * (1.0 - schlick(Color::splat(COAT_F0), wo.z).x);
+    if spec + diffuse <= 0.0 {
+        return 0.5;
+    }
+    (spec / (spec + diffuse)).clamp(0.05, 0.95)
 }
 
 /// The generalised half vector of Walter et al. 2007 (eq. 16) for `wo`,

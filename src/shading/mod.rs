@@ -54,7 +54,8 @@ impl Frame {
 /// - `mirror`: a smooth conductor of constant reflectance `reflectance`;
 /// - `conductor`: GGX, Fresnel from the complex index if given, else the
 ///   constant reflectance `C` (1 by default: the perfect conductor);
-/// - `dielectric`: smooth or rough glass of index `ior`.
+/// - `dielectric`: smooth or rough glass of index `ior`;
+/// - `principled`: glTF's metallic-roughness model, [`Bsdf::Principled`].
 pub fn bsdf_at(material: &Material, albedo: Color) -> Bsdf {
     match material.kind {
         MaterialKind::Diffuse => Bsdf::Diffuse {
@@ -78,6 +79,15 @@ pub fn bsdf_at(material: &Material, albedo: Color) -> Bsdf {
         MaterialKind::Dielectric { ior, roughness, .. } => Bsdf::Dielectric {
             eta: ior,
             ggx: Ggx::from_roughness(roughness, 0.0),
+        },
+        // Roughness 0.05 at least: the blend of lobes has no delta limit.
+        MaterialKind::Principled {
+            metallic,
+            roughness,
+        } => Bsdf::Principled {
+            base: albedo.clamp(Color::ZERO, Color::ONE),
+            metallic,
+            ggx: Ggx::from_roughness(roughness.max(0.05), 0.0),
         },
     }
 }

@@ -40,6 +40,22 @@ fn rough_bsdfs() -> Vec<(&'static str, Bsdf)> {
             },
         ),
         (
+            "principled plastic r=0.5",
+            Bsdf::Principled {
+                base: Color::new(0.9, 0.3, 0.1),
+                metallic: 0.0,
+                ggx: Ggx::from_roughness(0.5, 0.0),
+            },
+        ),
+        (
+            "principled half metal r=0.6",
+            Bsdf::Principled {
+                base: Color::ONE,
+                metallic: 0.5,
+                ggx: Ggx::from_roughness(0.6, 0.0),
+            },
+        ),
+        (
             "dielectric r=0.8 η=1.33",
             Bsdf::Dielectric {
                 eta: 1.33,

@@ -163,11 +163,17 @@ impl Whitted {
                     Bsdf::Conductor { fresnel, .. } => Some(fresnel.eval(wo.dot(n_facing))),
                     _ => None,
                 },
+                MaterialKind::Principled { metallic, .. } if metallic >= 0.5 => {
+                    Some(scene.albedo(&si))
+                }
                 _ => None,
             };
             match material.kind {
                 MaterialKind::Diffuse => {}
-                MaterialKind::Mirror { .. } | MaterialKind::Conductor { .. } => {
+                MaterialKind::Principled { .. } if mirror.is_none() => {}
+                MaterialKind::Mirror { .. }
+                | MaterialKind::Conductor { .. }
+                | MaterialKind::Principled { .. } => {
                     let reflectance = mirror.unwrap_or(Color::ZERO);
                     let w = weight * reflectance.max_element();
                     if w >= self.min_weight && spend(budget) {

@@ -16,8 +16,9 @@
 //!
 //! The default scene's nodes are walked with their transforms; each
 //! triangle primitive becomes a mesh, shared by every node that uses it (an
-//! instance). Materials: base colour; metallic ≥ 0.5 a mirror tinted by the
-//! base colour; `KHR_materials_transmission` > 0 glass with
+//! instance). Materials: base colour, metallic and roughness become a
+//! `principled` material (Whitted: diffuse, or a mirror tinted by the base
+//! colour when metallic ≥ 0.5); `KHR_materials_transmission` > 0 glass with
 //! `KHR_materials_ior` (default 1.5); roughness sets the highlight. Their
 //! factors must be finite and in the ranges the specification gives. The
 //! first valid perspective camera found, if any, is returned.
@@ -609,16 +610,17 @@ fn map_material(m: &::gltf::Material) -> Result<Material, String> {
         };
         material.diffuse = 1.0 - transmission;
         material.ambient = 0.0;
-    } else if metallic >= 0.5 {
-        // A metal tinted by the base colour (glTF's conductor: Schlick's
-        // Fresnel from F0 = base colour, which at normal incidence is it).
-        material.kind = MaterialKind::Conductor {
-            complex_ior: None,
+    } else {
+        // glTF's metallic-roughness model (for Whitted: diffuse, or a mirror
+        // of the base colour when mostly metal).
+        material.kind = MaterialKind::Principled {
+            metallic,
             roughness,
-            anisotropy: 0.0,
         };
-        material.diffuse = 0.0;
-        material.ambient = 0.0;
+        if metallic >= 0.5 {
+            material.diffuse = 0.0;
+            material.ambient = 0.0;
+        }
     }
     Ok(material)
 }
