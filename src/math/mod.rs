@@ -29,8 +29,16 @@ pub fn normalize_robust(v: Vec3) -> Vec3 {
 /// The unit normal `(v1 − v0) × (v2 − v0)/|…|` of a triangle (counter-clockwise
 /// winding seen from the side it points to), or zero for a degenerate one;
 /// in f64, so that it exists for triangles of any size f32 can hold.
+///
+/// The cross product is taken in f32 when its squared length lies well
+/// inside f32's normal range (the usual case, and the fast one), else in f64.
 #[inline]
 pub fn triangle_normal(v0: Vec3, v1: Vec3, v2: Vec3) -> Vec3 {
+    let c = (v1 - v0).cross(v2 - v0);
+    let len2 = c.length_squared();
+    if (1e-30..1e30).contains(&len2) {
+        return c * len2.sqrt().recip();
+    }
     let (v0, v1, v2) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
     (v1 - v0).cross(v2 - v0).normalize_or_zero().as_vec3a()
 }
