@@ -1040,7 +1040,7 @@ fn summary(scene_name: &str, report: &Report) -> String {
     format!(
         "Rendered {scene_name} at {}×{}{part}, {samples}, {} integrator (max depth {}), {}. \
          Load {:.1} ms, render {:.1} ms. Rays: {} camera, {} shadow, {} reflection, {} refraction \
-         ({} in all, {:.1} M rays/s). {} intersection tests{implicit}.{nan}{cut}{meshes}",
+         ({} in all, {:.1} M rays/s, {:.2} M samples/s). {} intersection tests{implicit}.{nan}{cut}{meshes}",
         s.width,
         s.height,
         s.integrator,
@@ -1054,6 +1054,7 @@ fn summary(scene_name: &str, report: &Report) -> String {
         group(s.rays.refraction),
         group(s.rays_total),
         s.rays_per_second / 1e6,
+        s.samples_per_second / 1e6,
         group(s.intersection_tests),
     )
 }
