@@ -21,7 +21,16 @@ pub struct Mesh {
     pub uvs: Vec<Vec2>,
     /// 8-wide BVH, collapsed from the binary SAH BVH.
     pub bvh: Bvh8,
+    /// For meshes of at most [`LANE_CACHE_TRIANGLES`] triangles: entry `k`
+    /// holds triangles `k .. k + 4` (the last ones repeat triangle `k`) in
+    /// structure-of-arrays form, so that a leaf's triangles are tested
+    /// without gathering their vertices through the index array.
+    lanes: Vec<TriangleLanes>,
 }
+
+/// Meshes up to this many triangles keep their triangles gathered in lanes
+/// (144 bytes per triangle).
+pub const LANE_CACHE_TRIANGLES: usize = 1 << 16;
 
 /// Why a mesh could not be built from its arrays.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -96,13 +105,24 @@ impl Mesh {
             indices: Vec::new(),
         };
         let bvh = Bvh8::from_binary(&binary);
-        Ok(Mesh {
+        let mut mesh = Mesh {
             positions,
             triangles,
             normals,
             uvs,
             bvh,
-        })
+            lanes: Vec::new(),
+        };
+        let n = mesh.triangles.len();
+        if n <= LANE_CACHE_TRIANGLES {
+            mesh.lanes = (0..n as u32)
+                .map(|k| {
+                    let prims: Vec<u32> = (k..(k + LANES as u32).min(n as u32)).collect();
+                    mesh.gather(&prims)
+                })
+                .collect();
+        }
+        Ok(mesh)
     }
 
     pub fn bounds(&self) -> Aabb {
@@ -111,7 +131,8 @@ impl Mesh {
 
     /// Bytes of vertex, index and BVH data.
     pub fn bytes(&self) -> usize {
-        self.positions.len() * 12
+        self.lanes.len() * std::mem::size_of::<TriangleLanes>()
+            + self.positions.len() * 12
             + self.triangles.len() * 12
             + self.normals.len() * 12
             + self.uvs.len() * 8
@@ -127,6 +148,21 @@ impl Mesh {
             p[b as usize].into(),
             p[c as usize].into(),
         )
+    }
+
+    /// The lanes of `chunk` (at most [`LANES`] triangles) and the mask of
+    /// the lanes that are its own: from the cache when the chunk is a run of
+    /// consecutive triangles (a leaf's), else gathered.
+    #[inline(always)]
+    fn lanes_of(&self, chunk: &[u32]) -> (TriangleLanes, u32) {
+        let first = chunk[0];
+        let own = (1u32 << chunk.len()) - 1;
+        if let Some(lanes) = self.lanes.get(first as usize)
+            && chunk[chunk.len() - 1] == first + chunk.len() as u32 - 1
+        {
+            return (*lanes, own);
+        }
+        (self.gather(chunk), own)
     }
 
     /// Up to [`LANES`] triangles, one per lane; lanes past `prims.len()`
@@ -164,10 +200,12 @@ impl Mesh {
             |prims, mut t_max| {
                 let mut best = None;
                 for chunk in prims.chunks(LANES) {
-                    let h = intersect_mt_lanes(ray.o, ray.d, &self.gather(chunk), ray.t_min, t_max);
+                    let (lanes, own) = self.lanes_of(chunk);
+                    let h = intersect_mt_lanes(ray.o, ray.d, &lanes, ray.t_min, t_max);
                     // The nearest lane, the first of equals (padding lanes
-                    // repeat lane 0, so they never win).
-                    let mut bits = h.mask;
+                    // repeat lane 0, so they never win; cached lanes past the
+                    // chunk are masked off).
+                    let mut bits = h.mask & own;
                     while bits != 0 {
                         let i = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
@@ -198,9 +236,9 @@ impl Mesh {
             #[inline(always)]
             |prims| {
                 prims.chunks(LANES).any(|chunk| {
-                    let h =
-                        intersect_mt_lanes(ray.o, ray.d, &self.gather(chunk), ray.t_min, ray.t_max);
-                    h.mask != 0
+                    let (lanes, own) = self.lanes_of(chunk);
+                    let h = intersect_mt_lanes(ray.o, ray.d, &lanes, ray.t_min, ray.t_max);
+                    h.mask & own != 0
                 })
             },
         )

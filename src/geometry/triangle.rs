@@ -101,7 +101,7 @@ pub const LANES: usize = 4;
 
 /// Four triangles in structure-of-arrays form, one per lane: `v[j][a]` holds
 /// coordinate `a` of vertex `j` of every lane's triangle.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleLanes {
     pub v: [[Vec4; 3]; 3],
 }
