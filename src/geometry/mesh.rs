@@ -29,8 +29,9 @@ pub struct Mesh {
 }
 
 /// Meshes up to this many triangles keep their triangles gathered in lanes
-/// (144 bytes per triangle).
-pub const LANE_CACHE_TRIANGLES: usize = 1 << 16;
+/// (144 bytes per triangle, so at most 590 KB a mesh; larger meshes, whose
+/// 52 bytes per triangle matter, gather).
+pub const LANE_CACHE_TRIANGLES: usize = 1 << 12;
 
 /// Why a mesh could not be built from its arrays.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
