@@ -103,7 +103,7 @@ impl Light {
     /// Samples light arriving at `p` with `u ∈ [0, 1)²`. `None` where the
     /// sample carries nothing (the back of a one-sided light, a point inside
     /// a sphere light's surface).
-    #[inline]
+    #[inline(always)]
     pub fn sample_li(&self, p: Vec3, u: (f32, f32)) -> Option<LightSample> {
         match self {
             Light::Point {

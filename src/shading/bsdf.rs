@@ -117,6 +117,12 @@ impl Bsdf {
         }
     }
 
+    /// Whether [`Bsdf::sample`] chooses between lobes (uses its `uc`).
+    #[inline]
+    pub fn has_lobes(&self) -> bool {
+        matches!(self, Bsdf::Dielectric { .. } | Bsdf::Principled { .. })
+    }
+
     /// Whether light can pass through the surface.
     #[inline]
     pub fn transmits(&self) -> bool {

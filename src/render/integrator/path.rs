@@ -182,7 +182,13 @@ impl Path {
             };
             let frame = Frame::from_z(n_shading);
             let wo_local = frame.to_local(wo);
-            let (u_lobe, u_rr) = sampler.next_2d();
+            // A pair for the lobe choice and roulette only where they are
+            // made (one lobe and an early bounce need neither).
+            let (u_lobe, u_rr) = if bsdf.has_lobes() || depth >= self.rr_depth {
+                sampler.next_2d()
+            } else {
+                (0.5, 0.5)
+            };
             let u_light_pos = sampler.next_2d();
             let u_bsdf = sampler.next_2d();
 
@@ -234,7 +240,8 @@ impl Path {
             let Some(bs) = bsdf.sample(wo_local, u_lobe, u_bsdf) else {
                 break;
             };
-            let wi = frame.to_world(bs.wi).normalize();
+            // Unit up to rounding: the frame is orthonormal.
+            let wi = frame.to_world(bs.wi);
             // A sampled direction must leave on the side it claims.
             if (si.n.dot(wi) * si.n.dot(wo) > 0.0) == bs.transmitted {
                 break;
