@@ -179,7 +179,7 @@ fn shadow_through_glass_is_filtered_and_opaque_is_black() {
         -Vec3::Z,
         Vec3::new(0.0, 0.0, 3.0),
     );
-    let t = s.transmittance(&through, &mut c);
+    let t = glint::render::transmittance(s, &through, &mut c);
     assert!(
         (t - Color::splat(0.9216)).abs().max_element() < 1e-4,
         "{t:?}"
@@ -191,7 +191,7 @@ fn shadow_through_glass_is_filtered_and_opaque_is_black() {
         -Vec3::Z,
         Vec3::new(2.0, 0.0, 3.0),
     );
-    assert_eq!(s.transmittance(&beside, &mut c), Color::ONE);
+    assert_eq!(glint::render::transmittance(s, &beside, &mut c), Color::ONE);
     // The wall is opaque.
     let into_wall = Ray::spawn_to(
         Vec3::new(2.0, 0.0, 3.0),
@@ -199,7 +199,10 @@ fn shadow_through_glass_is_filtered_and_opaque_is_black() {
         -Vec3::Z,
         Vec3::new(2.0, 0.0, 5.0),
     );
-    assert_eq!(s.transmittance(&into_wall, &mut c), Color::ZERO);
+    assert_eq!(
+        glint::render::transmittance(s, &into_wall, &mut c),
+        Color::ZERO
+    );
     assert!(s.occluded(&into_wall, &mut c));
 }
 
@@ -364,9 +367,7 @@ fn absorbing_glass_attenuates_by_beer_lambert() {
         -Vec3::Z,
         Vec3::new(0.0, 0.0, 3.0),
     );
-    let t = tinted
-        .scene
-        .transmittance(&shadow, &mut TraceCounters::default());
+    let t = glint::render::transmittance(&tinted.scene, &shadow, &mut TraceCounters::default());
     let expected = 0.9216 * (-Color::new(0.1, 0.5, 1.0) * 2.0).exp();
     assert!(
         (t - expected).abs().max_element() < 1e-4,

@@ -1,6 +1,7 @@
-//! The scene: shapes with materials, lights, camera, and the two queries the
-//! integrators use, [`Scene::intersect`] (closest hit) and the shadow-ray
-//! queries [`Scene::occluded`] and [`Scene::transmittance`].
+//! The scene: shapes with materials, lights, camera, and the visibility
+//! queries the integrators use: [`Scene::intersect`] (closest hit),
+//! [`Scene::occluded`] (any hit) and [`Scene::visit_segment`] (the objects
+//! along a shadow ray, for light passing through glass).
 
 mod camera;
 pub mod desc;
@@ -28,7 +29,6 @@ pub use crate::geometry::TraceCounters;
 use crate::geometry::{Shape, ShapeHit, SurfacePoint};
 use crate::light::LightSet;
 use crate::math::{Aabb, Color, Ray, Vec3};
-use crate::shading::fresnel_dielectric;
 
 /// A shape with a material (an index into [`Scene::materials`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -460,80 +460,51 @@ impl Scene {
         hit
     }
 
-    /// The fraction of light that passes along a shadow ray's segment.
-    ///
-    /// Opaque objects block it (returns black at the first one found).
-    /// Dielectrics let it through straight, without bending it: each crossing
-    /// of their surface passes the Fresnel transmittance for light entering the
-    /// medium at that angle, and the path inside is attenuated by the
-    /// material's absorption. So glass casts a light, coloured shadow that
-    /// darkens towards its rim; the focusing of light by glass (caustics) is
-    /// not rendered, as in Whitted's ray tracer.
-    pub fn transmittance(&self, ray: &Ray, counters: &mut TraceCounters) -> Color {
-        let mut tr = Color::ONE;
+    /// Calls `visit(object, counters)` for the objects that may meet the
+    /// ray's segment (all of them, or those whose bounds it meets), until
+    /// one call returns true; returns whether one did. Merged meshes (which
+    /// are opaque) are tested first: if they meet the segment, nothing is
+    /// visited and the answer is true. What `visit` does with an object is
+    /// the caller's: the scene knows visibility, not light.
+    #[inline]
+    pub fn visit_segment(
+        &self,
+        ray: &Ray,
+        counters: &mut TraceCounters,
+        mut visit: impl FnMut(u32, &mut TraceCounters) -> bool,
+    ) -> bool {
         if self.linear {
             for i in 0..self.objects.len() as u32 {
-                if self.shadow_visit(i, ray, counters, &mut tr) {
+                if visit(i, counters) {
                     counters.intersection_tests += i as u64 + 1;
-                    return Color::ZERO;
+                    return true;
                 }
             }
             counters.intersection_tests += self.objects.len() as u64;
-            return tr;
+            return false;
         }
-        self.transmittance_tlas(ray, counters)
-    }
-
-    #[inline(never)]
-    fn transmittance_tlas(&self, ray: &Ray, counters: &mut TraceCounters) -> Color {
-        // The merged meshes are opaque.
         if let Some(m) = &self.merged
             && m.mesh.occludes_object(ray, counters)
         {
             counters.intersection_tests += 1;
-            return Color::ZERO;
+            return true;
         }
-        let mut tr = Color::ONE;
         let mut tests = 0;
         let mut top = TraversalCounters::default();
-        let mut visit = |i: u32, counters: &mut TraceCounters| {
+        let mut counted = |i: u32, counters: &mut TraceCounters| {
             tests += 1;
-            self.shadow_visit(i, ray, counters, &mut tr)
+            visit(i, counters)
         };
-        let blocked = self.unbounded.iter().any(|&i| visit(i, counters))
-            || self.tlas.any(ray, &mut top, |i| visit(i, counters));
+        let hit = self.unbounded.iter().any(|&i| counted(i, counters))
+            || self.tlas.any(ray, &mut top, |i| counted(i, counters));
         counters.intersection_tests += tests;
         counters.bvh.nodes_visited += top.nodes_visited;
-        if blocked { Color::ZERO } else { tr }
+        hit
     }
 
-    /// One object on a shadow ray: true if it is opaque and blocks the ray;
-    /// a dielectric multiplies `tr` by what passes it.
+    /// Whether object `i`'s material stops shadow rays (all but dielectrics).
     #[inline(always)]
-    fn shadow_visit(
-        &self,
-        i: u32,
-        ray: &Ray,
-        counters: &mut TraceCounters,
-        tr: &mut Color,
-    ) -> bool {
-        let object = &self.objects[i as usize];
-        if self.opaque[i as usize] {
-            return object.shape.occludes(ray, counters);
-        }
-        if let MaterialKind::Dielectric {
-            ior, absorption, ..
-        } = self.materials[object.material as usize].kind
-        {
-            let mut passed = 1.0f32;
-            let inside = object.shape.crossings(ray, counters, &mut |cos| {
-                passed *= fresnel_dielectric(cos, 1.0, ior).transmittance;
-            });
-            *tr *= passed;
-            if inside > 0.0 && absorption != Color::ZERO {
-                *tr *= (-absorption * inside).exp();
-            }
-        }
-        false
+    pub fn is_opaque(&self, i: u32) -> bool {
+        self.opaque[i as usize]
     }
 }

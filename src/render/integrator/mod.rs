@@ -9,7 +9,7 @@ mod whitted;
 
 pub use path::Path;
 pub use raycast::Raycast;
-pub use whitted::Whitted;
+pub use whitted::{Whitted, transmittance};
 
 use super::explain::RayTree;
 use super::sampler::PixelSampler;

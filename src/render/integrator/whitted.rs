@@ -329,7 +329,7 @@ pub(super) fn local_shading<R: Recorder>(
             continue;
         }
         counters.rays.shadow += 1;
-        let visibility = scene.transmittance(&shadow_ray, &mut counters.trace);
+        let visibility = transmittance(scene, &shadow_ray, &mut counters.trace);
         if visibility == Color::ZERO {
             if R::BLOCKERS {
                 // The nearest object on the segment; opaque, as it stopped the ray.
@@ -375,4 +375,39 @@ fn lattice_point(j: u32, n: u32, rot: [f32; 3]) -> (f32, f32, f32) {
     let b = (j as f64 * A1).fract() as f32;
     let c = (j as f64 * A2).fract() as f32;
     (wrap(a + rot[0]), wrap(b + rot[1]), wrap(c + rot[2]))
+}
+
+/// The fraction of light that passes along a shadow ray's segment, for
+/// Whitted's model.
+///
+/// Opaque objects block it (black at the first one found). Dielectrics let
+/// it through straight, without bending it: each crossing of their surface
+/// passes the Fresnel transmittance for light entering the medium at that
+/// angle, and the path inside is attenuated by the material's absorption. So
+/// glass casts a light, coloured shadow that darkens towards its rim; the
+/// focusing of light by glass (caustics) is not rendered, as in Whitted's
+/// ray tracer.
+pub fn transmittance(scene: &Scene, ray: &Ray, counters: &mut TraceCounters) -> Color {
+    let mut tr = Color::ONE;
+    let blocked = scene.visit_segment(ray, counters, |i, counters| {
+        let object = &scene.objects[i as usize];
+        if scene.is_opaque(i) {
+            return object.shape.occludes(ray, counters);
+        }
+        if let MaterialKind::Dielectric {
+            ior, absorption, ..
+        } = scene.materials[object.material as usize].kind
+        {
+            let mut passed = 1.0f32;
+            let inside = object.shape.crossings(ray, counters, &mut |cos| {
+                passed *= fresnel_dielectric(cos, 1.0, ior).transmittance;
+            });
+            tr *= passed;
+            if inside > 0.0 && absorption != Color::ZERO {
+                tr *= (-absorption * inside).exp();
+            }
+        }
+        false
+    });
+    if blocked { Color::ZERO } else { tr }
 }
