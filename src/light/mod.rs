@@ -228,7 +228,8 @@ impl Light {
             Light::Area(a) => {
                 let cos_l = a.n.dot(wi).abs();
                 let dist2 = (q - p).length_squared();
-                if cos_l == 0.0 {
+                // A degenerate triangle's slot (never chosen) has no density.
+                if cos_l == 0.0 || a.area == 0.0 {
                     return 0.0;
                 }
                 dist2 / (cos_l * a.area)
