@@ -26,11 +26,13 @@ pub struct Mesh {
     /// structure-of-arrays form, so that a leaf's triangles are tested
     /// without gathering their vertices through the index array.
     lanes: Vec<TriangleLanes>,
+    /// For the same small meshes: each triangle's unit normal, computed once.
+    face_normals: Vec<Vec3>,
 }
 
 /// Meshes up to this many triangles keep their triangles gathered in lanes
-/// (144 bytes per triangle, so at most 590 KB a mesh; larger meshes, whose
-/// 52 bytes per triangle matter, gather).
+/// and their face normals (160 bytes per triangle, so at most 655 KB a mesh;
+/// larger meshes, whose 52 bytes per triangle matter, gather and compute).
 pub const LANE_CACHE_TRIANGLES: usize = 1 << 12;
 
 /// Why a mesh could not be built from its arrays.
@@ -113,6 +115,7 @@ impl Mesh {
             uvs,
             bvh,
             lanes: Vec::new(),
+            face_normals: Vec::new(),
         };
         let n = mesh.triangles.len();
         if n <= LANE_CACHE_TRIANGLES {
@@ -120,6 +123,12 @@ impl Mesh {
                 .map(|k| {
                     let prims: Vec<u32> = (k..(k + LANES as u32).min(n as u32)).collect();
                     mesh.gather(&prims)
+                })
+                .collect();
+            mesh.face_normals = (0..n as u32)
+                .map(|k| {
+                    let (a, b, c) = mesh.vertices(k);
+                    triangle_normal(a, b, c)
                 })
                 .collect();
         }
@@ -133,6 +142,7 @@ impl Mesh {
     /// Bytes of vertex, index and BVH data.
     pub fn bytes(&self) -> usize {
         self.lanes.len() * std::mem::size_of::<TriangleLanes>()
+            + self.face_normals.len() * std::mem::size_of::<Vec3>()
             + self.positions.len() * 12
             + self.triangles.len() * 12
             + self.normals.len() * 12
@@ -310,7 +320,10 @@ impl Mesh {
         let b0 = (1.0 - b1 - b2).max(0.0);
         let p = b0 * v0 + b1 * v1 + b2 * v2;
         let p_err = gamma(7) * ((b0 * v0).abs() + (b1 * v1).abs() + (b2 * v2).abs());
-        let n = triangle_normal(v0, v1, v2);
+        let n = match self.face_normals.get(hit.prim as usize) {
+            Some(&n) => n,
+            None => triangle_normal(v0, v1, v2),
+        };
         let ns = if self.normals.is_empty() {
             n
         } else {
