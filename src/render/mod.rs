@@ -109,7 +109,8 @@ pub fn render_with<I: Integrator>(
 }
 
 /// Renders `settings` in passes of whole samples per pixel (1, 1, 2, 4, 8,
-/// then 4 at a time) until `settings.spp` are done or the next pass would
+/// then the largest power of two, else multiple of 4, that the time left
+/// affords) until `settings.spp` are done or the next pass would
 /// end after `seconds` (at least one pass is rendered). Passes are exact
 /// sample ranges merged exactly, so the result is the render of the samples
 /// reached (`film.header.samples` and `stats.spp` say how many), bit for bit.
@@ -123,9 +124,17 @@ pub fn render_timed(
     settings.validate().map_err(RenderError::Settings)?;
     let integrator = AnyIntegrator::new(settings);
     let start = Instant::now();
+    let in_place = options.aovs.is_empty();
     let pass_options = FilmOptions {
         keep_sums: true,
         ..options.clone()
+    };
+    // Without AOVs the passes add into one film; with them each pass has a
+    // film of its own, merged (AOVs of several passes need merging rules).
+    let mut film = if in_place {
+        Some(new_film(settings, &pass_options)?)
+    } else {
+        None
     };
     let mut merger: Option<parts::Merger> = None;
     let mut total = TileCounters::default();
@@ -141,31 +150,80 @@ pub fn render_timed(
         };
         // Progress in pixel-samples.
         let scaled = |n: u64| progress(n * count as u64);
-        let (film, counters, t, _) =
-            render_pass(scene, &pass_settings, &integrator, &pass_options, &scaled)?;
-        threads = t;
+        let counters = match &mut film {
+            Some(film) => {
+                let (counters, t) = run_tiles(
+                    scene,
+                    &pass_settings,
+                    &integrator,
+                    &scaled,
+                    film,
+                    Some((done + count) as u64),
+                )?;
+                threads = t;
+                counters
+            }
+            None => {
+                let (part, counters, t, _) =
+                    render_pass(scene, &pass_settings, &integrator, &pass_options, &scaled)?;
+                threads = t;
+                merger
+                    .get_or_insert_with(|| {
+                        let mut header = part.header.clone();
+                        header.samples = settings.samples();
+                        parts::Merger::new(header).expect("the film of one pass was allocated")
+                    })
+                    .add(&part);
+                counters
+            }
+        };
         total += counters;
-        let merged = merger.get_or_insert_with(|| {
-            let mut header = film.header.clone();
-            header.samples = settings.samples();
-            parts::Merger::new(header).expect("the film of one pass was allocated")
-        });
-        merged.add(&film);
         done += count;
-        // Passes double the samples so far up to 16 (power-of-two prefixes
-        // are the best stratified), then add 4 at a time, so that the time
-        // limit is met closely.
-        let next = if done < 16 { done } else { 4 };
+        // The next pass: up to 16 samples, double them (cheap passes that
+        // measure the speed); then reach the largest power of two that the
+        // time left affords (power-of-two prefixes are the best
+        // stratified), else add what it affords in multiples of 4.
         let elapsed = start.elapsed().as_secs_f64();
-        if elapsed + elapsed / done as f64 * next.min(settings.spp - done) as f64 > seconds {
+        let per_sample = elapsed / done as f64;
+        let affordable = ((seconds - elapsed) / per_sample)
+            .max(0.0)
+            .min(u32::MAX as f64) as u32;
+        let left = settings.spp - done;
+        let next = if done < 16 {
+            done
+        } else {
+            let power = (done + affordable.min(left))
+                .checked_next_power_of_two()
+                .map_or(0, |p| {
+                    if p > done + affordable.min(left) {
+                        p / 2
+                    } else {
+                        p
+                    }
+                });
+            if power > done {
+                power - done
+            } else {
+                affordable.min(left) / 4 * 4
+            }
+        };
+        if next == 0 || elapsed + per_sample * next.min(left) as f64 > seconds {
             break;
         }
         pass = next;
     }
     let seconds_render = start.elapsed().as_secs_f64();
-    let mut merger = merger.expect("at least one pass is rendered");
-    merger.set_sample_count(done);
-    let mut film = merger.finish();
+    let mut film = match film {
+        Some(mut film) => {
+            film.header.samples.count = done;
+            film
+        }
+        None => {
+            let mut merger = merger.expect("at least one pass is rendered");
+            merger.set_sample_count(done);
+            merger.finish()
+        }
+    };
     if !options.keep_sums {
         film.sums = Vec::new();
     }
@@ -188,6 +246,15 @@ fn render_pass<I: Integrator>(
     options: &FilmOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Film, TileCounters, usize, f64), RenderError> {
+    let mut film = new_film(settings, options)?;
+    let start = Instant::now();
+    let (counters, threads) = run_tiles(scene, settings, integrator, progress, &mut film, None)?;
+    Ok((film, counters, threads, start.elapsed().as_secs_f64()))
+}
+
+/// A blank film for `settings`, keeping what `options` asks for; refused
+/// (not aborted) where memory is short.
+fn new_film(settings: &RenderSettings, options: &FilmOptions) -> Result<Film, RenderError> {
     settings.validate().map_err(RenderError::Settings)?;
     let keep_sums = options.keep_sums;
     let keep_aovs = !options.aovs.is_empty();
@@ -232,7 +299,7 @@ fn render_pass<I: Integrator>(
             .map_err(|_| memory_error(0))?;
         aov_pixels.resize(rect.area() as usize, AovPixel::default());
     }
-    let mut film = Film {
+    Ok(Film {
         header: FilmHeader {
             width: settings.width,
             height: settings.height,
@@ -244,24 +311,35 @@ fn render_pass<I: Integrator>(
         sums,
         aovs: options.aovs.clone(),
         aov_pixels,
-    };
-    let start = Instant::now();
-    let (counters, threads) = if settings.threads == 0 {
-        let counters = render_tiles(scene, settings, integrator, progress, &mut film);
-        (counters, rayon::current_num_threads())
-    } else {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(settings.threads)
-            .build()
-            .map_err(|e| RenderError::ThreadPool {
-                threads: settings.threads,
-                message: e.to_string(),
-            })?;
-        let counters =
-            pool.install(|| render_tiles(scene, settings, integrator, progress, &mut film));
-        (counters, settings.threads)
-    };
-    Ok((film, counters, threads, start.elapsed().as_secs_f64()))
+    })
+}
+
+/// Renders the samples of `settings` into `film`, on the settings' threads;
+/// with `accumulate = Some(n)`, adds them to the film's sums (which then
+/// hold `n` samples per pixel) instead of replacing them. Returns the work
+/// done and the threads used.
+fn run_tiles<I: Integrator>(
+    scene: &Scene,
+    settings: &RenderSettings,
+    integrator: &I,
+    progress: &(dyn Fn(u64) + Sync),
+    film: &mut Film,
+    accumulate: Option<u64>,
+) -> Result<(TileCounters, usize), RenderError> {
+    if settings.threads == 0 {
+        let counters = render_tiles(scene, settings, integrator, progress, film, accumulate);
+        return Ok((counters, rayon::current_num_threads()));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(settings.threads)
+        .build()
+        .map_err(|e| RenderError::ThreadPool {
+            threads: settings.threads,
+            message: e.to_string(),
+        })?;
+    let counters =
+        pool.install(|| render_tiles(scene, settings, integrator, progress, film, accumulate));
+    Ok((counters, settings.threads))
 }
 
 /// The statistics of a render of `settings` that did the work `counters`.
@@ -337,6 +415,7 @@ fn render_tiles<I: Integrator>(
     integrator: &I,
     progress: &(dyn Fn(u64) + Sync),
     film: &mut Film,
+    accumulate: Option<u64>,
 ) -> TileCounters {
     let rect = film.header.rect;
     let w = rect.width() as usize;
@@ -374,7 +453,7 @@ fn render_tiles<I: Integrator>(
             tiles
                 .into_par_iter()
                 .map(|mut tile| {
-                    let counters = render_tile(scene, settings, integrator, &mut tile);
+                    let counters = render_tile(scene, settings, integrator, &mut tile, accumulate);
                     progress(tile.rows.iter().map(|r| r.len() as u64).sum());
                     counters
                 })
@@ -419,6 +498,7 @@ fn render_tile<I: Integrator>(
     settings: &RenderSettings,
     integrator: &I,
     tile: &mut Tile,
+    accumulate: Option<u64>,
 ) -> TileCounters {
     let mut counters = Counters::default();
     let (mut bad_samples, mut nan_pixels) = (0, 0);
@@ -459,9 +539,17 @@ fn render_tile<I: Integrator>(
             }
             bad_samples += bad;
             nan_pixels += (bad > 0) as u64;
-            *pixel = sum.mean(samples.count as u64);
-            if let Some(s) = tile.sums.get_mut(dy) {
-                s[dx] = sum;
+            match (accumulate, tile.sums.get_mut(dy)) {
+                (Some(total), Some(s)) => {
+                    s[dx].add(&sum);
+                    *pixel = s[dx].mean(total);
+                }
+                (_, s) => {
+                    *pixel = sum.mean(samples.count as u64);
+                    if let Some(s) = s {
+                        s[dx] = sum;
+                    }
+                }
             }
             if let (Some(row), Some(before)) = (tile.aovs.get_mut(dy), before) {
                 let a = &mut row[dx];
