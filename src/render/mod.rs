@@ -23,7 +23,7 @@ pub use film::{
 };
 pub use integrator::{
     AnyIntegrator, Counters, Integrator, MAX_RAY_TREE, NoRecord, Path, RayKind, Raycast, Recorder,
-    Whitted, transmittance,
+    Tracer, Whitted, transmittance,
 };
 pub use parts::{Film, FilmHeader, MergeError, SampleSum};
 pub use sampler::{Pcg32, PixelSampler, PixelSamples};

@@ -63,6 +63,45 @@ pub trait Integrator: Sync {
     }
 }
 
+/// An integrator written once for any [`Recorder`]; [`Integrator`] follows
+/// from it (a render passes [`NoRecord`], whose calls vanish, and `glint
+/// explain` a [`RayTree`]).
+pub trait Tracer: Sync {
+    /// The radiance along the camera ray `ray`, telling `rec` what is traced.
+    fn trace<R: Recorder>(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        rec: &mut R,
+    ) -> Color;
+}
+
+impl<T: Tracer> Integrator for T {
+    #[inline]
+    fn radiance(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+    ) -> Color {
+        self.trace(scene, ray, sampler, counters, &mut NoRecord)
+    }
+
+    fn radiance_explained(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        tree: &mut RayTree,
+    ) -> Color {
+        self.trace(scene, ray, sampler, counters, tree)
+    }
+}
+
 /// The integrator the settings name.
 #[derive(Clone, Copy, Debug)]
 pub enum AnyIntegrator {
@@ -91,34 +130,20 @@ impl AnyIntegrator {
     }
 }
 
-impl Integrator for AnyIntegrator {
+impl Tracer for AnyIntegrator {
     #[inline]
-    fn radiance(
+    fn trace<R: Recorder>(
         &self,
         scene: &Scene,
         ray: &Ray,
         sampler: &mut PixelSampler,
         counters: &mut Counters,
+        rec: &mut R,
     ) -> Color {
         match self {
-            AnyIntegrator::Raycast(i) => i.radiance(scene, ray, sampler, counters),
-            AnyIntegrator::Whitted(i) => i.radiance(scene, ray, sampler, counters),
-            AnyIntegrator::Path(i) => i.radiance(scene, ray, sampler, counters),
-        }
-    }
-
-    fn radiance_explained(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        sampler: &mut PixelSampler,
-        counters: &mut Counters,
-        tree: &mut RayTree,
-    ) -> Color {
-        match self {
-            AnyIntegrator::Raycast(i) => i.radiance_explained(scene, ray, sampler, counters, tree),
-            AnyIntegrator::Whitted(i) => i.radiance_explained(scene, ray, sampler, counters, tree),
-            AnyIntegrator::Path(i) => i.radiance_explained(scene, ray, sampler, counters, tree),
+            AnyIntegrator::Raycast(i) => i.trace(scene, ray, sampler, counters, rec),
+            AnyIntegrator::Whitted(i) => i.trace(scene, ray, sampler, counters, rec),
+            AnyIntegrator::Path(i) => i.trace(scene, ray, sampler, counters, rec),
         }
     }
 }

@@ -1,10 +1,9 @@
 //! Unidirectional path tracing with next-event estimation and multiple
 //! importance sampling.
 
-use super::{Counters, Integrator, NoRecord, RayKind, Recorder, face_forward, intersect};
+use super::{Counters, RayKind, Recorder, Tracer, face_forward, intersect};
 use crate::light::Light;
 use crate::math::{Color, Ray, Vec3};
-use crate::render::explain::RayTree;
 use crate::render::sampler::PixelSampler;
 use crate::scene::{MaterialKind, Scene};
 use crate::shading::{Frame, bsdf_at};
@@ -22,11 +21,12 @@ use crate::shading::{Frame, bsdf_at};
 ///   with weight 1; glass is a surface like any other (light passes it only
 ///   along sampled paths);
 /// - Russian roulette from bounce `rr_depth` on: a path survives with
-///   probability `q = min(1, max(β·η²))` and is reweighted by `1/q`;
+///   probability `q = min(0.95, max(β·η²))` (as Mitsuba 3) and is
+///   reweighted by `1/q`;
 /// - `max_depth` bounces at most (`u32::MAX`: no limit but roulette).
 ///
-/// Rays that leave the scene see the environment (the background colour),
-/// which is a light too.
+/// Rays that leave the scene see the environment (the scene's map, or its
+/// background colour), which is a light too.
 ///
 /// `sampling` can switch off either strategy (for comparisons such as
 /// Veach's glossy plates): light sampling alone still finds emitters behind
@@ -40,29 +40,6 @@ pub struct Path {
 
 pub use crate::settings::Sampling;
 
-impl Integrator for Path {
-    fn radiance(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        sampler: &mut PixelSampler,
-        counters: &mut Counters,
-    ) -> Color {
-        self.trace(scene, ray, sampler, counters, &mut NoRecord)
-    }
-
-    fn radiance_explained(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        sampler: &mut PixelSampler,
-        counters: &mut Counters,
-        tree: &mut RayTree,
-    ) -> Color {
-        self.trace(scene, ray, sampler, counters, tree)
-    }
-}
-
 /// The power heuristic with β = 2.
 #[inline]
 fn power_heuristic(a: f32, b: f32) -> f32 {
@@ -71,6 +48,20 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
         return 1.0;
     }
     if a2 + b2 == 0.0 { 0.0 } else { a2 / (a2 + b2) }
+}
+
+impl Tracer for Path {
+    #[inline]
+    fn trace<R: Recorder>(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        rec: &mut R,
+    ) -> Color {
+        self.trace_path(scene, ray, sampler, counters, rec)
+    }
 }
 
 impl Path {
@@ -86,7 +77,7 @@ impl Path {
         }
     }
 
-    fn trace<R: Recorder>(
+    fn trace_path<R: Recorder>(
         &self,
         scene: &Scene,
         camera_ray: &Ray,

@@ -1,9 +1,8 @@
 //! Appel's ray casting.
 
 use super::whitted::local_shading;
-use super::{Counters, Integrator, NoRecord, RayKind, Recorder, face_forward, intersect};
+use super::{Counters, RayKind, Recorder, Tracer, face_forward, intersect};
 use crate::math::{Color, Ray};
-use crate::render::explain::RayTree;
 use crate::render::sampler::PixelSampler;
 use crate::scene::Scene;
 
@@ -21,30 +20,7 @@ impl Default for Raycast {
     }
 }
 
-impl Integrator for Raycast {
-    fn radiance(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        sampler: &mut PixelSampler,
-        counters: &mut Counters,
-    ) -> Color {
-        self.trace(scene, ray, sampler, counters, &mut NoRecord)
-    }
-
-    fn radiance_explained(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        sampler: &mut PixelSampler,
-        counters: &mut Counters,
-        tree: &mut RayTree,
-    ) -> Color {
-        self.trace(scene, ray, sampler, counters, tree)
-    }
-}
-
-impl Raycast {
+impl Tracer for Raycast {
     fn trace<R: Recorder>(
         &self,
         scene: &Scene,

@@ -1,12 +1,9 @@
 //! Whitted's recursive ray tracing, and the local terms of its
 //! illumination model (which [`super::Raycast`] shares).
 
-use super::{
-    Counters, Integrator, MAX_RAY_TREE, NoRecord, RayKind, Recorder, face_forward, intersect,
-};
+use super::{Counters, MAX_RAY_TREE, RayKind, Recorder, Tracer, face_forward, intersect};
 use crate::light::Light;
 use crate::math::{Color, Ray, Vec3};
-use crate::render::explain::RayTree;
 use crate::render::sampler::PixelSampler;
 use crate::scene::{MaterialKind, Scene, SurfaceInteraction, TraceCounters};
 use crate::shading::{Bsdf, bsdf_at, fresnel_dielectric, reflect, refract};
@@ -33,26 +30,17 @@ pub struct Whitted {
     pub light_samples: u32,
 }
 
-impl Integrator for Whitted {
-    fn radiance(
+impl Tracer for Whitted {
+    #[inline]
+    fn trace<R: Recorder>(
         &self,
         scene: &Scene,
         ray: &Ray,
         sampler: &mut PixelSampler,
         counters: &mut Counters,
+        rec: &mut R,
     ) -> Color {
-        self.camera_ray(scene, ray, sampler, counters, &mut NoRecord)
-    }
-
-    fn radiance_explained(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        sampler: &mut PixelSampler,
-        counters: &mut Counters,
-        tree: &mut RayTree,
-    ) -> Color {
-        self.camera_ray(scene, ray, sampler, counters, tree)
+        self.camera_ray(scene, ray, sampler, counters, rec)
     }
 }
 
@@ -88,7 +76,7 @@ impl Whitted {
             cut: false,
         };
         rec.begin(RayKind::Camera, ray, Color::ONE);
-        let l = self.trace(
+        let l = self.trace_ray(
             scene,
             ray,
             0,
@@ -109,7 +97,7 @@ impl Whitted {
     /// `throughput` is that product per channel, absorption included, for
     /// the recorder.
     #[allow(clippy::too_many_arguments)]
-    fn trace<R: Recorder>(
+    fn trace_ray<R: Recorder>(
         &self,
         scene: &Scene,
         ray: &Ray,
@@ -182,7 +170,7 @@ impl Whitted {
                         let t = carried * reflectance;
                         rec.begin(RayKind::Reflection, &r, t);
                         l += reflectance
-                            * self.trace(
+                            * self.trace_ray(
                                 scene,
                                 &r,
                                 depth + 1,
@@ -206,7 +194,7 @@ impl Whitted {
                         let t = carried * f.reflectance;
                         rec.begin(RayKind::Reflection, &r, t);
                         l += f.reflectance
-                            * self.trace(
+                            * self.trace_ray(
                                 scene,
                                 &r,
                                 depth + 1,
@@ -228,7 +216,7 @@ impl Whitted {
                         let t = carried * f.transmittance;
                         rec.begin(RayKind::Refraction, &r, t);
                         l += f.transmittance
-                            * self.trace(
+                            * self.trace_ray(
                                 scene,
                                 &r,
                                 depth + 1,
