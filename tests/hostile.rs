@@ -355,6 +355,49 @@ fn scene_new_reports_a_bad_material_index() {
     );
 }
 
+/// An emissive mesh instanced 256 times would make 5 million area
+/// lights (half a gigabyte): refused with a clear error before any is made.
+#[test]
+fn too_many_emissive_triangles_is_an_error() {
+    use glint::geometry::{Mesh, MeshInstance, Shape, testgen::icosphere};
+    use glint::scene::{Camera, Material, Object, Scene};
+    use std::sync::Arc;
+    let (positions, triangles) = icosphere(5, 1.0);
+    let mesh = Arc::new(Mesh::new(positions, triangles, Vec::new(), Vec::new()).unwrap());
+    let count = mesh.triangles.len();
+    let lamp = Material {
+        emission: glint::math::Color::ONE,
+        ..Material::default_diffuse()
+    };
+    let objects: Vec<Object> = (0..256)
+        .map(|_| Object {
+            shape: Shape::Mesh(MeshInstance::new(mesh.clone(), None)),
+            material: 0,
+        })
+        .collect();
+    let camera = Camera::try_new(
+        glint::math::Vec3::Z,
+        glint::math::Vec3::ZERO,
+        glint::math::Vec3::Y,
+        40.0,
+    )
+    .unwrap();
+    let e = Scene::new(
+        camera,
+        objects,
+        vec![lamp],
+        Vec::new(),
+        glint::math::Color::ZERO,
+        glint::math::Color::ZERO,
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string()
+            .contains(&format!("{} emissive triangles", 256 * count)),
+        "{e}"
+    );
+}
+
 /// The parts of a one-mesh glTF that tests vary.
 struct Gltf {
     buffer_uri: Option<String>,

@@ -295,6 +295,24 @@ impl Light {
     }
 }
 
+/// The most area lights a scene may have (one per emissive triangle or box
+/// face; about 100 bytes each, so 400 MB at most).
+pub const MAX_AREA_LIGHTS: u64 = 1 << 22;
+
+/// How many area lights [`LightSet::build`] would make of `objects`.
+pub fn area_light_count(objects: &[Object], materials: &[Material]) -> u64 {
+    objects
+        .iter()
+        .filter(|o| materials[o.material as usize].is_emissive())
+        .map(|o| match &o.shape {
+            Shape::Sphere(_) => 1,
+            Shape::Mesh(m) => m.mesh.triangles.len() as u64,
+            Shape::Cuboid(_) => 6,
+            Shape::Plane(_) | Shape::Implicit(_) => 0,
+        })
+        .sum()
+}
+
 /// Marks objects without lights in [`LightSet::object_lights`].
 pub const NO_LIGHT: u32 = u32::MAX;
 

@@ -193,6 +193,11 @@ pub enum SceneBuildError {
         material: u32,
         count: usize,
     },
+    #[error(
+        "the scene has {count} emissive triangles and faces (each an area light of about 100 bytes); at most {} are accepted",
+        crate::light::MAX_AREA_LIGHTS
+    )]
+    TooManyLights { count: u64 },
 }
 
 /// Up to this many objects, rays test them one by one instead of using the
@@ -200,8 +205,10 @@ pub enum SceneBuildError {
 const LINEAR_OBJECTS: usize = 8;
 
 impl Scene {
-    /// Builds the top-level BVH over the objects. Fails if an object names a
-    /// material index out of range of `materials`.
+    /// Builds the top-level BVH over the objects and the lights. Fails if an
+    /// object names a material index out of range of `materials`, or if
+    /// emissive meshes would make more than [`crate::light::MAX_AREA_LIGHTS`]
+    /// area lights.
     pub fn new(
         camera: Camera,
         objects: Vec<Object>,
@@ -220,6 +227,10 @@ impl Scene {
                 material: o.material,
                 count: materials.len(),
             });
+        }
+        let area_lights = crate::light::area_light_count(&objects, &materials);
+        if area_lights > crate::light::MAX_AREA_LIGHTS {
+            return Err(SceneBuildError::TooManyLights { count: area_lights });
         }
         let opaque: Vec<bool> = objects
             .iter()
