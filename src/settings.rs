@@ -78,10 +78,6 @@ pub enum Sampling {
 impl Sampling {
     pub const NAMES: [&'static str; 3] = ["mis", "light", "bsdf"];
     const ALL: [Sampling; 3] = [Sampling::Mis, Sampling::Light, Sampling::Bsdf];
-
-    pub fn name(self) -> &'static str {
-        Self::NAMES[Self::ALL.iter().position(|k| *k == self).unwrap_or(0)]
-    }
 }
 
 impl std::str::FromStr for Sampling {

@@ -421,8 +421,12 @@ material = "m"
     )
     .unwrap_err()
     .to_string();
+    // It points at the `map` value.
+    let line = text.lines().position(|l| l.starts_with("map =")).unwrap() + 1;
     assert!(
-        missing.contains("the environment") && missing.contains("nowhere.exr"),
+        missing.contains(&format!("scene.toml:{line}:7:"))
+            && missing.contains("the environment")
+            && missing.contains("nowhere.exr"),
         "{missing}"
     );
 }

@@ -445,11 +445,6 @@ impl MeshInstance {
         }
     }
 
-    /// Whether the instance has a transform (other than the identity).
-    pub fn is_transformed(&self) -> bool {
-        self.transform.is_some()
-    }
-
     /// The world-space corners of triangle `prim` (for area lights).
     pub fn world_triangle(&self, prim: u32) -> [Vec3; 3] {
         let (a, b, c) = self.mesh.vertices(prim);

@@ -350,7 +350,6 @@ impl LightSet {
         descs: &[LightDesc],
         background: Color,
         environment: Option<&std::sync::Arc<EnvMap>>,
-        bounds: Aabb,
     ) -> Self {
         let mut lights = Vec::new();
         for d in descs {
@@ -432,6 +431,12 @@ impl LightSet {
                 lights.len() as u32 - 1
             }),
         };
+        // The radius of the finite objects' bounds, for lights at infinity.
+        let bounds = objects
+            .iter()
+            .map(|o| o.shape.bounds())
+            .filter(|b| b.min.is_finite() && b.max.is_finite())
+            .fold(Aabb::EMPTY, |a, b| a.union(&b));
         let radius = if bounds.min.is_finite() && bounds.max.is_finite() {
             0.5 * (bounds.max - bounds.min).length()
         } else {

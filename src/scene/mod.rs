@@ -255,19 +255,7 @@ impl Scene {
         // Infinite boxes are left out of the BVH by its builder.
         let tlas = Bvh::build(&bounds);
         let objects_len = objects.len();
-        let scene_bounds = objects
-            .iter()
-            .map(|o| o.shape.bounds())
-            .filter(finite)
-            .fold(Aabb::EMPTY, |a, b| a.union(&b));
-        let emitters = LightSet::build(
-            &objects,
-            &materials,
-            &lights,
-            background,
-            None,
-            scene_bounds,
-        );
+        let emitters = LightSet::build(&objects, &materials, &lights, background, None);
         Ok(Scene {
             camera,
             objects,
@@ -289,19 +277,12 @@ impl Scene {
     /// and the path integrator samples it as a light.
     pub fn with_environment(mut self, map: crate::light::EnvMap) -> Self {
         let map = std::sync::Arc::new(map);
-        let bounds = self
-            .objects
-            .iter()
-            .map(|o| o.shape.bounds())
-            .filter(|b| b.min.is_finite() && b.max.is_finite())
-            .fold(Aabb::EMPTY, |a, b| a.union(&b));
         self.emitters = LightSet::build(
             &self.objects,
             &self.materials,
             &self.lights,
             self.background,
             Some(&map),
-            bounds,
         );
         self.environment = Some(map);
         self
