@@ -192,9 +192,7 @@ impl Mesh {
                 Vec4::new(p[0].z, p[1].z, p[2].z, p[3].z),
             ]
         };
-        TriangleLanes {
-            v: [v(0), v(1), v(2)],
-        }
+        TriangleLanes::new([v(0), v(1), v(2)])
     }
 
     /// Closest hit of an object-space ray: `(prim, t, b1, b2)`. Triangles
@@ -246,11 +244,16 @@ impl Mesh {
             &mut counters.bvh,
             #[inline(always)]
             |prims| {
-                prims.chunks(LANES).any(|chunk| {
+                // A plain loop: `Iterator::any` here compiled to a call that
+                // splatted the ray anew for every leaf batch.
+                for chunk in prims.chunks(LANES) {
                     let (lanes, own) = self.lanes_of(chunk);
                     let h = intersect_mt_lanes(ray.o, ray.d, &lanes, ray.t_min, ray.t_max);
-                    h.mask & own != 0
-                })
+                    if h.mask & own != 0 {
+                        return true;
+                    }
+                }
+                false
             },
         )
     }

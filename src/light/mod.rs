@@ -172,12 +172,12 @@ impl Light {
                 let one_minus = sin2_max / (1.0 + cos_max);
                 let cos_t = 1.0 - u.0 * one_minus;
                 let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-                let phi = 2.0 * PI * u.1;
+                let (sin_p, cos_p) = crate::math::sin_cos_turns(u.1);
                 let dist = dist2.sqrt();
                 let axis = dc / dist;
                 let frame = crate::shading::Frame::from_z(axis);
                 let wi = frame
-                    .to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t))
+                    .to_world(Vec3::new(sin_t * cos_p, sin_t * sin_p, cos_t))
                     .normalize();
                 // Distance to the near side along wi (tangent point if the
                 // rounded ray misses).
@@ -206,9 +206,9 @@ impl Light {
                 // Uniform over the sphere.
                 let z = 1.0 - 2.0 * u.0;
                 let r = (1.0 - z * z).max(0.0).sqrt();
-                let phi = 2.0 * PI * u.1;
+                let (sin_p, cos_p) = crate::math::sin_cos_turns(u.1);
                 Some(LightSample {
-                    wi: Vec3::new(r * phi.cos(), r * phi.sin(), z),
+                    wi: Vec3::new(r * cos_p, r * sin_p, z),
                     li: *radiance,
                     pdf: 1.0 / (4.0 * PI),
                     target: None,

@@ -9,7 +9,7 @@
 use super::fresnel::{fr_conductor, fr_dielectric, refract_eta, schlick};
 use super::microfacet::Ggx;
 use crate::math::{Color, Vec3};
-use std::f32::consts::{FRAC_1_PI, PI};
+use std::f32::consts::FRAC_1_PI;
 
 /// How a conductor's reflectance depends on the angle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -101,9 +101,9 @@ fn flip_z(w: Vec3, flip: bool) -> Vec3 {
 #[inline]
 pub fn cosine_hemisphere(u: (f32, f32)) -> Vec3 {
     let r = u.0.sqrt();
-    let phi = 2.0 * PI * u.1;
-    let (x, y) = (r * phi.cos(), r * phi.sin());
-    Vec3::new(x, y, (1.0 - x * x - y * y).max(0.0).sqrt())
+    let (sin_p, cos_p) = crate::math::sin_cos_turns(u.1);
+    // z = √(1 − r²) from u directly, beside r rather than after it.
+    Vec3::new(r * cos_p, r * sin_p, (1.0 - u.0).max(0.0).sqrt())
 }
 
 impl Bsdf {

@@ -127,8 +127,8 @@ impl Ggx {
         let t2 = wh.cross(t1);
         // A uniform point on the unit disc (polar mapping).
         let r = u.0.sqrt();
-        let phi = 2.0 * PI * u.1;
-        let (px, mut py) = (r * phi.cos(), r * phi.sin());
+        let (sin_p, cos_p) = crate::math::sin_cos_turns(u.1);
+        let (px, mut py) = (r * cos_p, r * sin_p);
         let h = (1.0 - px * px).max(0.0).sqrt();
         let s = 0.5 * (1.0 + wh.z);
         py = (1.0 - s) * h + s * py;
