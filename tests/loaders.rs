@@ -336,9 +336,14 @@ fn gltf_and_glb_with_instances_materials_and_camera() {
             (xs[0] - 1.0).abs() < 1e-5 && (xs[1] - 12.0).abs() < 1e-4,
             "{xs:?}"
         );
+        // The neutral material as the file gives it (shading makes it glass).
+        let m = model.parts[0].material.as_ref().unwrap();
         assert!(
-            matches!(model.parts[0].material.as_ref().unwrap().kind, MaterialKind::Dielectric { ior, .. } if (ior - 1.7).abs() < 1e-6)
+            matches!(m.kind, MaterialKind::Principled { ior, transmission, .. } if (ior - 1.7).abs() < 1e-6 && transmission == 1.0),
+            "{:?}",
+            m.kind
         );
+        assert_eq!(m.glass(), Some((1.7, glint::math::Color::ZERO)));
         let cam = model.camera.as_ref().unwrap();
         assert_eq!(cam.position.to_array(), [0.0, 0.0, 10.0]);
         assert!((cam.fov_y_deg - 0.7f32.to_degrees()).abs() < 1e-4);

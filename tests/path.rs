@@ -69,7 +69,8 @@ material = "m"
 
 /// A sphere that absorbs nothing, in a uniform environment of radiance 1,
 /// is invisible: every pixel is 1 (±1% here) for a white Lambertian, a
-/// rough perfect conductor (F = 1), rough glass and smooth glass.
+/// rough perfect conductor (F = 1), rough glass and smooth glass (as
+/// dielectrics, and as glTF's principled material with transmission 1).
 /// Single-scattering GGX loses energy at grazing angles (1.1% of the
 /// sphere's mean at α = 0.09; there is no multiple-scattering compensation
 /// yet), so the rough surfaces use roughness 0.2 (α = 0.04) for the
@@ -81,6 +82,10 @@ fn white_furnace() {
         r#"{ type = "conductor", color = [1, 1, 1], roughness = 0.2 }"#,
         r#"{ type = "dielectric", ior = 1.5, roughness = 0.1 }"#,
         r#"{ type = "dielectric", ior = 1.5 }"#,
+        // glTF's transmission: all glass, rough and smooth, with a white
+        // base (which tints only transmitted light).
+        r#"{ type = "principled", color = [1, 1, 1], transmission = 1, roughness = 0.1 }"#,
+        r#"{ type = "principled", color = [1, 1, 1], transmission = 1, roughness = 0 }"#,
     ] {
         let file = furnace(material);
         let (image, stats) = render(&file.scene, &file.settings, &|_| {}).unwrap();

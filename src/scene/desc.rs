@@ -416,9 +416,16 @@ fn check_material(m: &Material) -> Result<(), String> {
         MaterialKind::Principled {
             metallic,
             roughness,
+            transmission,
+            ior,
         } => {
             check_unit("metallic", metallic)?;
-            check_unit("roughness", roughness)
+            check_unit("roughness", roughness)?;
+            check_unit("transmission", transmission)?;
+            if !(1.0..1e6).contains(&ior) {
+                return Err(format!("`ior` {ior} must be from 1 to 1e6"));
+            }
+            Ok(())
         }
     }?;
     check_color(m.emission)

@@ -68,12 +68,27 @@ pub enum MaterialKind {
         #[serde(default)]
         anisotropy: f32,
     },
-    /// glTF's metallic-roughness material (the colour is the base colour):
-    /// for the `path` integrator a diffuse base under a GGX coat, blended to
-    /// a metal by `metallic` (see [`crate::shading::Bsdf::Principled`]);
-    /// Whitted's integrator shades it as diffuse, or as a mirror of the
-    /// base colour when `metallic ≥ 0.5`.
-    Principled { metallic: f32, roughness: f32 },
+    /// The neutral material of model files (glTF's metallic-roughness
+    /// model; the colour is the base colour): for the `path` integrator a
+    /// diffuse base under a GGX coat of index `ior`, blended to a metal by
+    /// `metallic`, with the fraction `transmission` of the non-metal part
+    /// glass of index `ior` (see [`crate::shading::Bsdf::Principled`]).
+    /// Whitted's integrator shades it as diffuse, as a mirror of the base
+    /// colour when `metallic ≥ 0.5`, or as smooth glass when it is mostly
+    /// glass (see [`Material::glass`]).
+    Principled {
+        metallic: f32,
+        roughness: f32,
+        #[serde(default)]
+        transmission: f32,
+        #[serde(default = "default_ior")]
+        ior: f32,
+    },
+}
+
+/// glTF's default index of refraction.
+fn default_ior() -> f32 {
+    1.5
 }
 
 impl Material {
@@ -91,9 +106,28 @@ impl Material {
         }
     }
 
-    /// Whether shadow rays stop at this material (everything but dielectrics).
+    /// Whether shadow rays stop at this material (everything but glass).
     pub fn is_opaque(&self) -> bool {
-        !matches!(self.kind, MaterialKind::Dielectric { .. })
+        self.glass().is_none()
+    }
+
+    /// The index of refraction and absorption of a material that Whitted's
+    /// integrator (and its light shadows) treat as smooth glass:
+    /// dielectrics, and principled materials whose glass part
+    /// `(1 − metallic)·transmission` is at least one half.
+    pub fn glass(&self) -> Option<(f32, Color)> {
+        match self.kind {
+            MaterialKind::Dielectric {
+                ior, absorption, ..
+            } => Some((ior, absorption)),
+            MaterialKind::Principled {
+                metallic,
+                transmission,
+                ior,
+                ..
+            } if (1.0 - metallic) * transmission >= 0.5 => Some((ior, Color::ZERO)),
+            _ => None,
+        }
     }
 
     /// Whether the surface emits light.

@@ -49,18 +49,31 @@ pub enum Bsdf {
     /// chosen by the Fresnel reflectance), a delta pair when smooth.
     Dielectric { eta: f32, ggx: Ggx },
     /// glTF's metallic-roughness model: a Lambertian base under a GGX
-    /// dielectric coat of `F0 = 0.04`, blended towards a GGX conductor of
-    /// reflectance `base` by `metallic`. The specular lobe has Schlick's
-    /// Fresnel from `F0 = lerp(0.04, base, metallic)`; the diffuse lobe
+    /// dielectric coat of `F0 = ((η − 1)/(η + 1))²` (0.04 for glTF's default
+    /// η = 1.5), blended towards a GGX conductor of reflectance `base` by
+    /// `metallic`. The specular lobe has Schlick's Fresnel from
+    /// `F0 = lerp(F0_coat, base, metallic)`; the diffuse lobe
     /// `(1 − metallic)·base/π` is weighted by `(1 − F(cos θo))(1 − F(cos θi))`
     /// with the coat's `F0`, the light the coat lets in and out (a
     /// reciprocal, energy-bounded coupling as in Ashikhmin & Shirley 2000).
     /// A lobe is sampled with probability proportional to its estimated
     /// albedo.
+    ///
+    /// `transmission` (`KHR_materials_transmission`) turns that part of the
+    /// dielectric into glass: with `w = (1 − metallic)·transmission`,
+    /// `f = (1 − w)·f_opaque + w·f_glass`, where `f_opaque` is the model
+    /// above with metallic `metallic/(1 − w)` (so the metal keeps its
+    /// weight) and `f_glass` the [`Bsdf::Dielectric`] of index `eta` and
+    /// microfacets `glass`, its transmission tinted by `base` (glTF's
+    /// `specular_btdf · baseColor`). The glass part is chosen with
+    /// probability `w`.
     Principled {
         base: Color,
         metallic: f32,
         ggx: Ggx,
+        transmission: f32,
+        eta: f32,
+        glass: Ggx,
     },
 }
 
@@ -112,7 +125,14 @@ impl Bsdf {
     #[inline]
     pub fn is_delta(&self) -> bool {
         match self {
-            Bsdf::Diffuse { .. } | Bsdf::Principled { .. } => false,
+            Bsdf::Diffuse { .. } => false,
+            // Only smooth glass is left when its weight is 1.
+            Bsdf::Principled {
+                metallic,
+                transmission,
+                glass,
+                ..
+            } => glass_weight(*metallic, *transmission) >= 1.0 && glass.is_smooth(),
             Bsdf::Conductor { ggx, .. } | Bsdf::Dielectric { ggx, .. } => ggx.is_smooth(),
         }
     }
@@ -126,7 +146,26 @@ impl Bsdf {
     /// Whether light can pass through the surface.
     #[inline]
     pub fn transmits(&self) -> bool {
-        matches!(self, Bsdf::Dielectric { .. })
+        match self {
+            Bsdf::Dielectric { .. } => true,
+            Bsdf::Principled {
+                metallic,
+                transmission,
+                ..
+            } => glass_weight(*metallic, *transmission) > 0.0,
+            _ => false,
+        }
+    }
+
+    /// The relative index of refraction (inside over outside) of light
+    /// that crosses the surface; 1 where none does.
+    #[inline]
+    pub fn eta(&self) -> f32 {
+        match *self {
+            Bsdf::Dielectric { eta, .. } => eta,
+            Bsdf::Principled { eta, .. } if self.transmits() => eta,
+            _ => 1.0,
+        }
     }
 
     /// `f(ωo, ωi)` (zero for delta lobes).
@@ -161,14 +200,26 @@ impl Bsdf {
                 base,
                 metallic,
                 ggx,
+                transmission,
+                eta,
+                glass,
             } => {
-                if wo.z * wi.z <= 0.0 {
-                    return Color::ZERO;
+                let w = glass_weight(metallic, transmission);
+                let mut f = Color::ZERO;
+                if w < 1.0 && wo.z * wi.z > 0.0 {
+                    let metallic = opaque_metallic(metallic, w);
+                    let f0 = coat_f0(eta);
+                    let flip = wo.z < 0.0;
+                    let (wo, wi) = (flip_z(wo, flip), flip_z(wi, flip));
+                    f = (principled_diffuse(base, metallic, f0, wo, wi)
+                        + principled_specular(base, metallic, f0, &ggx, wo, wi))
+                        * (1.0 - w);
                 }
-                let flip = wo.z < 0.0;
-                let (wo, wi) = (flip_z(wo, flip), flip_z(wi, flip));
-                principled_diffuse(base, metallic, wo, wi)
-                    + principled_specular(base, metallic, &ggx, wo, wi)
+                if w > 0.0 && !glass.is_smooth() {
+                    let tint = if wo.z * wi.z < 0.0 { base } else { Color::ONE };
+                    f += tint * (w * dielectric_eval(eta, &glass, wo, wi));
+                }
+                f
             }
         }
     }
@@ -206,19 +257,29 @@ impl Bsdf {
                 base,
                 metallic,
                 ggx,
+                transmission,
+                eta,
+                glass,
             } => {
-                if wo.z * wi.z <= 0.0 {
-                    return 0.0;
+                let w = glass_weight(metallic, transmission);
+                let mut pdf = 0.0;
+                if w < 1.0 && wo.z * wi.z > 0.0 {
+                    let metallic = opaque_metallic(metallic, w);
+                    let f0 = coat_f0(eta);
+                    let flip = wo.z < 0.0;
+                    let (wo, wi) = (flip_z(wo, flip), flip_z(wi, flip));
+                    let p_spec = principled_specular_probability(base, metallic, f0, wo);
+                    let diffuse = wi.z * FRAC_1_PI;
+                    let specular = match (wo + wi).try_normalize() {
+                        Some(wm) if !ggx.is_smooth() => ggx.d_visible(wo, wm) / (4.0 * wo.dot(wm)),
+                        _ => 0.0,
+                    };
+                    pdf = (1.0 - w) * (p_spec * specular + (1.0 - p_spec) * diffuse);
                 }
-                let flip = wo.z < 0.0;
-                let (wo, wi) = (flip_z(wo, flip), flip_z(wi, flip));
-                let p_spec = principled_specular_probability(base, metallic, wo);
-                let diffuse = wi.z * FRAC_1_PI;
-                let specular = match (wo + wi).try_normalize() {
-                    Some(wm) if !ggx.is_smooth() => ggx.d_visible(wo, wm) / (4.0 * wo.dot(wm)),
-                    _ => 0.0,
-                };
-                p_spec * specular + (1.0 - p_spec) * diffuse
+                if w > 0.0 && !glass.is_smooth() {
+                    pdf += w * dielectric_pdf(eta, &glass, wo, wi);
+                }
+                pdf
             }
         }
     }
@@ -276,10 +337,35 @@ impl Bsdf {
                 base,
                 metallic,
                 ggx,
+                transmission,
+                eta,
+                glass,
             } => {
+                let w = glass_weight(metallic, transmission);
+                // The glass part with probability w (uc rescaled for its
+                // own lobe choice), else the opaque part.
+                if uc < w {
+                    let s = dielectric_sample(eta, &glass, wo, uc / w, u)?;
+                    let tint = if s.transmitted { base } else { Color::ONE };
+                    if s.delta {
+                        return Some(BsdfSample {
+                            f: s.f * tint * w,
+                            pdf: s.pdf * w,
+                            ..s
+                        });
+                    }
+                    let pdf = self.pdf(wo, s.wi);
+                    return (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample {
+                        f: self.eval(wo, s.wi),
+                        pdf,
+                        ..s
+                    });
+                }
+                let metallic = opaque_metallic(metallic, w);
                 let flip = wo.z < 0.0;
                 let wo_up = flip_z(wo, flip);
-                let p_spec = principled_specular_probability(base, metallic, wo_up);
+                let p_spec = principled_specular_probability(base, metallic, coat_f0(eta), wo_up);
+                let uc = if w > 0.0 { (uc - w) / (1.0 - w) } else { uc };
                 let wi = if uc < p_spec {
                     let wm = ggx.sample_visible(wo_up, u);
                     2.0 * wo_up.dot(wm) * wm - wo_up
@@ -303,37 +389,64 @@ impl Bsdf {
     }
 }
 
-/// The coat's reflectance at normal incidence (glTF: IOR 1.5).
-const COAT_F0: f32 = 0.04;
+/// The coat's reflectance at normal incidence for index `eta`:
+/// `((η − 1)/(η + 1))²`, 0.04 for glass of 1.5.
+#[inline]
+fn coat_f0(eta: f32) -> f32 {
+    ((eta - 1.0) / (eta + 1.0)).powi(2)
+}
+
+/// The weight of [`Bsdf::Principled`]'s glass part.
+#[inline]
+fn glass_weight(metallic: f32, transmission: f32) -> f32 {
+    (1.0 - metallic) * transmission
+}
+
+/// The metallic of [`Bsdf::Principled`]'s opaque part (weight `1 − w`)
+/// that keeps the metal's weight `metallic` in the whole.
+#[inline]
+fn opaque_metallic(metallic: f32, w: f32) -> f32 {
+    if w > 0.0 {
+        (metallic / (1.0 - w)).min(1.0)
+    } else {
+        metallic
+    }
+}
 
 /// [`Bsdf::Principled`]'s diffuse lobe (both directions above).
 #[inline]
-fn principled_diffuse(base: Color, metallic: f32, wo: Vec3, wi: Vec3) -> Color {
-    let coat = |c: f32| 1.0 - schlick(Color::splat(COAT_F0), c).x;
+fn principled_diffuse(base: Color, metallic: f32, f0: f32, wo: Vec3, wi: Vec3) -> Color {
+    let coat = |c: f32| 1.0 - schlick(Color::splat(f0), c).x;
     base * ((1.0 - metallic) * FRAC_1_PI * coat(wo.z) * coat(wi.z))
 }
 
 /// [`Bsdf::Principled`]'s specular lobe (both directions above).
 #[inline]
-fn principled_specular(base: Color, metallic: f32, ggx: &Ggx, wo: Vec3, wi: Vec3) -> Color {
+fn principled_specular(
+    base: Color,
+    metallic: f32,
+    f0: f32,
+    ggx: &Ggx,
+    wo: Vec3,
+    wi: Vec3,
+) -> Color {
     if ggx.is_smooth() {
         return Color::ZERO;
     }
     let Some(wm) = (wo + wi).try_normalize() else {
         return Color::ZERO;
     };
-    let f0 = Color::splat(COAT_F0).lerp(base, metallic);
+    let f0 = Color::splat(f0).lerp(base, metallic);
     schlick(f0, wo.dot(wm)) * (ggx.d(wm) * ggx.g(wo, wi) / (4.0 * wo.z * wi.z))
 }
 
 /// The probability of sampling [`Bsdf::Principled`]'s specular lobe seen
 /// from `wo`: its Fresnel weight against the diffuse lobe's albedo.
 #[inline]
-fn principled_specular_probability(base: Color, metallic: f32, wo: Vec3) -> f32 {
-    let f0 = Color::splat(COAT_F0).lerp(base, metallic);
-    let spec = schlick(f0, wo.z).max_element();
-    let diffuse =
-        (1.0 - metallic) * base.max_element() * (1.0 - schlick(Color::splat(COAT_F0), wo.z).x);
+fn principled_specular_probability(base: Color, metallic: f32, f0: f32, wo: Vec3) -> f32 {
+    let coat = Color::splat(f0);
+    let spec = schlick(coat.lerp(base, metallic), wo.z).max_element();
+    let diffuse = (1.0 - metallic) * base.max_element() * (1.0 - schlick(coat, wo.z).x);
     if spec + diffuse <= 0.0 {
         return 0.5;
     }

@@ -80,14 +80,20 @@ pub fn bsdf_at(material: &Material, albedo: Color) -> Bsdf {
             eta: ior,
             ggx: Ggx::from_roughness(roughness, 0.0),
         },
-        // Roughness 0.05 at least: the blend of lobes has no delta limit.
+        // Roughness 0.05 at least for the opaque part: its blend of lobes
+        // has no delta limit; the glass part may be smooth.
         MaterialKind::Principled {
             metallic,
             roughness,
+            transmission,
+            ior,
         } => Bsdf::Principled {
             base: albedo.clamp(Color::ZERO, Color::ONE),
             metallic,
             ggx: Ggx::from_roughness(roughness.max(0.05), 0.0),
+            transmission,
+            eta: ior,
+            glass: Ggx::from_roughness(roughness, 0.0),
         },
     }
 }

@@ -45,6 +45,9 @@ fn rough_bsdfs() -> Vec<(&'static str, Bsdf)> {
                 base: Color::new(0.9, 0.3, 0.1),
                 metallic: 0.0,
                 ggx: Ggx::from_roughness(0.5, 0.0),
+                transmission: 0.0,
+                eta: 1.5,
+                glass: Ggx::from_roughness(0.5, 0.0),
             },
         ),
         (
@@ -53,6 +56,31 @@ fn rough_bsdfs() -> Vec<(&'static str, Bsdf)> {
                 base: Color::ONE,
                 metallic: 0.5,
                 ggx: Ggx::from_roughness(0.6, 0.0),
+                transmission: 0.0,
+                eta: 1.5,
+                glass: Ggx::from_roughness(0.6, 0.0),
+            },
+        ),
+        (
+            "principled transmission 0.6 r=0.4 η=1.4",
+            Bsdf::Principled {
+                base: Color::new(0.9, 0.6, 0.3),
+                metallic: 0.2,
+                ggx: Ggx::from_roughness(0.4, 0.0),
+                transmission: 0.6,
+                eta: 1.4,
+                glass: Ggx::from_roughness(0.4, 0.0),
+            },
+        ),
+        (
+            "principled glass r=0.3",
+            Bsdf::Principled {
+                base: Color::ONE,
+                metallic: 0.0,
+                ggx: Ggx::from_roughness(0.3, 0.0),
+                transmission: 1.0,
+                eta: 1.5,
+                glass: Ggx::from_roughness(0.3, 0.0),
             },
         ),
         (
@@ -290,10 +318,7 @@ fn albedo_is_at_most_one() {
         // Radiance crossing into a medium of index η is η² times denser
         // (Veach 1997, §5.2): energy is the radiance weight times
         // (η_i/η_o)².
-        let eta = match bsdf {
-            Bsdf::Dielectric { eta, .. } => eta,
-            _ => 1.0,
-        };
+        let eta = bsdf.eta();
         let side = |w: Vec3| if w.z > 0.0 { 1.0 } else { eta };
         let energy = |wo: Vec3, wi: Vec3| (side(wi) / side(wo)).powi(2);
         for wo in directions() {
@@ -337,10 +362,7 @@ fn albedo_is_at_most_one() {
 fn reciprocity() {
     let mut rng = Pcg32::new(9, 9);
     for (name, bsdf) in rough_bsdfs() {
-        let eta = match bsdf {
-            Bsdf::Dielectric { eta, .. } => eta,
-            _ => 1.0,
-        };
+        let eta = bsdf.eta();
         let side = |w: Vec3| if w.z > 0.0 { 1.0 } else { eta };
         for _ in 0..5000 {
             let mut pick = || {
@@ -360,6 +382,66 @@ fn reciprocity() {
                 err <= 1e-3 * a.max_element().max(b.max_element()) + 1e-6,
                 "{name}: {a} vs {b} for {wo}, {wi}"
             );
+        }
+    }
+}
+
+/// The principled material's glass part is the dielectric: all glass
+/// (transmission 1, no metal), it evaluates, weighs and samples as
+/// [`Bsdf::Dielectric`] does, except that its base colour tints the light it
+/// transmits; half glass over smooth microfacets is a delta lobe of half
+/// the weight beside a rough opaque part.
+#[test]
+fn principled_glass_part_is_the_dielectric() {
+    let tint = Color::new(0.9, 0.5, 0.25);
+    for roughness in [0.0, 0.3] {
+        let glass = Bsdf::Dielectric {
+            eta: 1.5,
+            ggx: Ggx::from_roughness(roughness, 0.0),
+        };
+        let principled = |transmission: f32| Bsdf::Principled {
+            base: tint,
+            metallic: 0.0,
+            ggx: Ggx::from_roughness(roughness.max(0.05), 0.0),
+            transmission,
+            eta: 1.5,
+            glass: Ggx::from_roughness(roughness, 0.0),
+        };
+        let all = principled(1.0);
+        assert!(all.transmits() && all.eta() == 1.5);
+        assert_eq!(all.is_delta(), roughness == 0.0);
+        let mut rng = Pcg32::new(3, 4);
+        for _ in 0..2000 {
+            let wo = dir(rng.next_f32() as f64 * PI, rng.next_f32() as f64 * 2.0 * PI);
+            let (uc, u) = (rng.next_f32(), (rng.next_f32(), rng.next_f32()));
+            let (Some(a), Some(b)) = (glass.sample(wo, uc, u), all.sample(wo, uc, u)) else {
+                assert_eq!(glass.sample(wo, uc, u), None);
+                continue;
+            };
+            assert_eq!(
+                (a.wi, a.delta, a.transmitted),
+                (b.wi, b.delta, b.transmitted)
+            );
+            let tinted = if a.transmitted { a.f * tint } else { a.f };
+            assert!((tinted - b.f).abs().max_element() <= 1e-5 * a.f.max_element());
+            assert!((a.pdf - b.pdf).abs() <= 1e-5 * a.pdf);
+            let (fa, fb) = (glass.eval(wo, a.wi), all.eval(wo, a.wi));
+            let fa = if a.transmitted { fa * tint } else { fa };
+            assert!((fa - fb).abs().max_element() <= 1e-5 * fa.max_element().max(1e-6));
+        }
+        // Half glass: smooth glass samples carry half the probability (and
+        // half the weight, so the throughput is as for glass).
+        let half = principled(0.5);
+        assert!(!half.is_delta() && half.transmits());
+        if roughness == 0.0 {
+            let wo = Vec3::new(0.6, 0.0, 0.8);
+            let s = half.sample(wo, 0.45, (0.3, 0.7)).unwrap();
+            let g = glass.sample(wo, 0.9, (0.3, 0.7)).unwrap();
+            assert!(s.delta && s.transmitted && g.transmitted);
+            assert!((s.pdf - 0.5 * g.pdf).abs() < 1e-6);
+            assert!((s.weight() - g.weight() * tint).abs().max_element() < 1e-5);
+            let opaque = half.sample(wo, 0.75, (0.3, 0.7)).unwrap();
+            assert!(!opaque.delta && !opaque.transmitted);
         }
     }
 }

@@ -241,10 +241,9 @@ impl Path {
             specular = bs.delta;
             prev_pdf = bs.pdf;
             prev_p = si.p;
-            if bs.transmitted
-                && let MaterialKind::Dielectric { ior, .. } = material.kind
-            {
-                eta_scale *= if front { ior * ior } else { 1.0 / (ior * ior) };
+            if bs.transmitted {
+                let eta = bsdf.eta();
+                eta_scale *= if front { eta * eta } else { 1.0 / (eta * eta) };
             }
             if !beta.is_finite() || beta == Color::ZERO {
                 break;

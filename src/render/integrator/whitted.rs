@@ -133,8 +133,9 @@ impl Whitted {
         let mut l = local;
         let material = &scene.materials[si.material as usize];
         // Absorption inside a dielectric scales everything this ray returns.
+        let glass = material.glass();
         let absorption = if !front
-            && let MaterialKind::Dielectric { absorption, .. } = material.kind
+            && let Some((_, absorption)) = glass
             && absorption != Color::ZERO
         {
             Some((-absorption * (hit.t * ray.d.length())).exp())
@@ -146,6 +147,7 @@ impl Whitted {
         if depth < self.max_depth {
             // A conductor is a mirror here, of its Fresnel reflectance.
             let mirror = match material.kind {
+                _ if glass.is_some() => None,
                 MaterialKind::Mirror { reflectance } => Some(reflectance),
                 MaterialKind::Conductor { .. } => match bsdf_at(material, scene.albedo(&si)) {
                     Bsdf::Conductor { fresnel, .. } => Some(fresnel.eval(wo.dot(n_facing))),
@@ -156,13 +158,9 @@ impl Whitted {
                 }
                 _ => None,
             };
-            match material.kind {
-                MaterialKind::Diffuse => {}
-                MaterialKind::Principled { .. } if mirror.is_none() => {}
-                MaterialKind::Mirror { .. }
-                | MaterialKind::Conductor { .. }
-                | MaterialKind::Principled { .. } => {
-                    let reflectance = mirror.unwrap_or(Color::ZERO);
+            match (mirror, glass) {
+                (None, None) => {}
+                (Some(reflectance), _) => {
                     let w = weight * reflectance.max_element();
                     if w >= self.min_weight && spend(budget) {
                         counters.rays.reflection += 1;
@@ -183,7 +181,7 @@ impl Whitted {
                             );
                     }
                 }
-                MaterialKind::Dielectric { ior, .. } => {
+                (None, Some((ior, _))) => {
                     let (eta_i, eta_t) = if front { (1.0, ior) } else { (ior, 1.0) };
                     let f = fresnel_dielectric(wo.dot(n_facing), eta_i, eta_t);
                     rec.fresnel(f.reflectance, f.transmittance);
@@ -382,10 +380,7 @@ pub fn transmittance(scene: &Scene, ray: &Ray, counters: &mut TraceCounters) -> 
         if scene.is_opaque(i) {
             return object.shape.occludes(ray, counters);
         }
-        if let MaterialKind::Dielectric {
-            ior, absorption, ..
-        } = scene.materials[object.material as usize].kind
-        {
+        if let Some((ior, absorption)) = scene.materials[object.material as usize].glass() {
             let mut passed = 1.0f32;
             let inside = object.shape.crossings(ray, counters, &mut |cos| {
                 passed *= fresnel_dielectric(cos, 1.0, ior).transmittance;

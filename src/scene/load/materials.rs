@@ -64,6 +64,8 @@ pub(super) fn read_material(ctx: &Ctx, name: &str, v: &Value) -> Result<Material
         "principled" => MaterialKind::Principled {
             metallic: f.checked("metallic", Some(0.0), unit, "a number from 0 to 1")?,
             roughness: f.checked("roughness", Some(0.5), unit, "a number from 0 to 1")?,
+            transmission: f.checked("transmission", Some(0.0), unit, "a number from 0 to 1")?,
+            ior: f.checked("ior", Some(1.5), |x| x >= 1.0, "an index of refraction ≥ 1")?,
         },
         "conductor" => MaterialKind::Conductor {
             complex_ior: read_complex_ior(ctx, &mut f)?,

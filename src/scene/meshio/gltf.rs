@@ -16,12 +16,14 @@
 //!
 //! The default scene's nodes are walked with their transforms; each
 //! triangle primitive becomes a mesh, shared by every node that uses it (an
-//! instance). Materials: base colour, metallic and roughness become a
-//! `principled` material (Whitted: diffuse, or a mirror tinted by the base
-//! colour when metallic ≥ 0.5); `KHR_materials_transmission` > 0 glass with
-//! `KHR_materials_ior` (default 1.5); roughness sets the highlight. Their
-//! factors must be finite and in the ranges the specification gives. The
-//! first valid perspective camera found, if any, is returned.
+//! instance). Materials: base colour, metallic, roughness,
+//! `KHR_materials_transmission` and `KHR_materials_ior` (default 1.5)
+//! become a `principled` material as they are, which shading maps to a BSDF
+//! (Whitted: diffuse, a mirror tinted by the base colour when metallic ≥
+//! 0.5, smooth glass when mostly transmissive); roughness also sets
+//! Whitted's highlight. Their factors must be finite and in the ranges the
+//! specification gives. The first valid perspective camera found, if any,
+//! is returned.
 
 use super::{FileCamera, MeshError, Model, ModelPart, RawMesh};
 use crate::math::{Color, Transform};
@@ -602,25 +604,18 @@ fn map_material(m: &::gltf::Material) -> Result<Material, String> {
         emission,
         two_sided: m.double_sided(),
     };
-    if transmission > 0.0 {
-        material.kind = MaterialKind::Dielectric {
-            ior,
-            absorption: Color::ZERO,
-            roughness,
-        };
-        material.diffuse = 1.0 - transmission;
+    // glTF's metallic-roughness model, as it is: shading maps it to a BSDF
+    // (for Whitted: diffuse, a mirror of the base colour when mostly metal,
+    // glass when mostly transmissive).
+    material.kind = MaterialKind::Principled {
+        metallic,
+        roughness,
+        transmission,
+        ior,
+    };
+    if metallic >= 0.5 || material.glass().is_some() {
+        material.diffuse = 0.0;
         material.ambient = 0.0;
-    } else {
-        // glTF's metallic-roughness model (for Whitted: diffuse, or a mirror
-        // of the base colour when mostly metal).
-        material.kind = MaterialKind::Principled {
-            metallic,
-            roughness,
-        };
-        if metallic >= 0.5 {
-            material.diffuse = 0.0;
-            material.ambient = 0.0;
-        }
     }
     Ok(material)
 }
