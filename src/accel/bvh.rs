@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 const BINS: usize = 16;
 /// Largest leaf.
-const MAX_LEAF: usize = 8;
+pub(crate) const MAX_LEAF: usize = 8;
 /// Cost of a traversal step relative to one primitive test.
 const TRAVERSAL_COST: f32 = 1.0;
 /// Depth below which splits are chosen by SAH (see `node`).

@@ -396,6 +396,16 @@ impl Bvh8 {
         self.nodes.len() * std::mem::size_of::<Bvh8Node>()
     }
 
+    /// Every leaf as `(first primitive, count)`, node by node (siblings
+    /// together, as traversal meets them).
+    pub fn leaves(&self) -> impl Iterator<Item = (u32, u32)> + '_ {
+        self.nodes.iter().flat_map(|node| {
+            (0..WIDTH)
+                .filter(|&k| node.leaves & (1 << k) != 0)
+                .map(|k| (node.child[k] & !LEAF, node.count[k] as u32))
+        })
+    }
+
     /// Closest hit, nearer children first, pruning by the closest `t`; as
     /// [`Bvh::closest`].
     #[inline]
@@ -405,16 +415,18 @@ impl Bvh8 {
         counters: &mut TraversalCounters,
         mut test: impl FnMut(u32, f32) -> Option<f32>,
     ) -> Option<(u32, f32)> {
-        self.closest_batch(
+        self.closest_leaves(
             ray,
             counters,
             #[inline(always)]
-            |prims, mut t_max| {
+            |leaves, mut t_max| {
                 let mut best = None;
-                for &prim in prims {
-                    if let Some(t) = test(prim, t_max) {
-                        t_max = t;
-                        best = Some((prim, t));
+                for &(first, count) in leaves {
+                    for prim in first..first + count {
+                        if let Some(t) = test(prim, t_max) {
+                            t_max = t;
+                            best = Some((prim, t));
+                        }
                     }
                 }
                 best
@@ -422,17 +434,18 @@ impl Bvh8 {
         )
     }
 
-    /// Closest hit, with the primitives of the leaves a node's box tests let
-    /// through handed to `test` in batches of up to [`WIDTH`], in leaf order
-    /// (for tests that take several primitives at once with SIMD):
-    /// `test(prims, t_max)` returns the closest hit among them before
-    /// `t_max`, the earliest of equals.
+    /// Closest hit, with the leaves of a node whose boxes the ray meets
+    /// before the closest hit so far handed to `test` together, as `(first
+    /// primitive, count)` in child order (for tests that take several
+    /// primitives at once, with SIMD, from data laid out per leaf or per
+    /// primitive): `test(leaves, t_max)` returns the closest hit among
+    /// their primitives before `t_max`, the earliest of equals.
     #[inline]
-    pub fn closest_batch(
+    pub fn closest_leaves(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(&[u32], f32) -> Option<(u32, f32)>,
+        test: impl FnMut(&[(u32, u32)], f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         if self.nodes.is_empty() {
             return None;
@@ -453,7 +466,7 @@ impl Bvh8 {
         setup: &RaySetup,
         t_max: f32,
         counters: &mut TraversalCounters,
-        test: impl FnMut(&[u32], f32) -> Option<(u32, f32)>,
+        test: impl FnMut(&[(u32, u32)], f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         self.closest_with(t_max, counters, test, &avx::AvxLanes::new(setup))
     }
@@ -463,7 +476,7 @@ impl Bvh8 {
         &self,
         mut t_max: f32,
         counters: &mut TraversalCounters,
-        mut test: impl FnMut(&[u32], f32) -> Option<(u32, f32)>,
+        mut test: impl FnMut(&[(u32, u32)], f32) -> Option<(u32, f32)>,
         lanes: &impl NodeTest,
     ) -> Option<(u32, f32)> {
         let mut best = None;
@@ -498,7 +511,7 @@ impl Bvh8 {
                 n_inner += 1;
             }
             let mut bits = hit & node.leaves as u32;
-            let mut batch = [0u32; WIDTH];
+            let mut leaves = [(0u32, 0u32); WIDTH];
             let mut n = 0;
             while bits != 0 {
                 let k = bits.trailing_zeros() as usize;
@@ -506,24 +519,15 @@ impl Bvh8 {
                 if t[k] > t_max {
                     continue;
                 }
-                let first = node.child[k] & !LEAF;
-                for prim in first..first + node.count[k] as u32 {
-                    if n == WIDTH {
-                        tests += n as u64;
-                        if let Some(h) = test(&batch, t_max) {
-                            (t_max, best) = (h.1, Some(h));
-                        }
-                        n = 0;
-                    }
-                    batch[n] = prim;
-                    n += 1;
-                }
+                let count = node.count[k] as u32;
+                tests += count as u64;
+                leaves[n] = (node.child[k] & !LEAF, count);
+                n += 1;
             }
-            if n > 0 {
-                tests += n as u64;
-                if let Some(h) = test(&batch[..n], t_max) {
-                    (t_max, best) = (h.1, Some(h));
-                }
+            if n > 0
+                && let Some(h) = test(&leaves[..n], t_max)
+            {
+                (t_max, best) = (h.1, Some(h));
             }
             if n_inner > 0 {
                 for &item in &inner[..n_inner - 1] {
@@ -557,22 +561,27 @@ impl Bvh8 {
         counters: &mut TraversalCounters,
         mut test: impl FnMut(u32) -> bool,
     ) -> bool {
-        self.any_batch(
+        self.any_leaves(
             ray,
             counters,
             #[inline(always)]
-            |prims| prims.iter().any(|&p| test(p)),
+            |leaves| {
+                leaves
+                    .iter()
+                    .any(|&(first, count)| (first..first + count).any(&mut test))
+            },
         )
     }
 
-    /// Any hit, with primitives handed to `test` in batches as by
-    /// [`Bvh8::closest_batch`]; stops when `test` returns true.
+    /// Any hit, with a node's leaves handed to `test` together as by
+    /// [`Bvh8::closest_leaves`] (`test(leaves)`); stops when `test` returns
+    /// true.
     #[inline]
-    pub fn any_batch(
+    pub fn any_leaves(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(&[u32]) -> bool,
+        test: impl FnMut(&[(u32, u32)]) -> bool,
     ) -> bool {
         if self.nodes.is_empty() {
             return false;
@@ -593,7 +602,7 @@ impl Bvh8 {
         setup: &RaySetup,
         t_max: f32,
         counters: &mut TraversalCounters,
-        test: impl FnMut(&[u32]) -> bool,
+        test: impl FnMut(&[(u32, u32)]) -> bool,
     ) -> bool {
         self.any_with(t_max, counters, test, &avx::AvxLanes::new(setup))
     }
@@ -603,7 +612,7 @@ impl Bvh8 {
         &self,
         t_max: f32,
         counters: &mut TraversalCounters,
-        mut test: impl FnMut(&[u32]) -> bool,
+        mut test: impl FnMut(&[(u32, u32)]) -> bool,
         lanes: &impl NodeTest,
     ) -> bool {
         let mut stack = Stack::<u32>::new();
@@ -611,7 +620,7 @@ impl Bvh8 {
         let (mut visited, mut tests) = (0u64, 0u64);
         let mut found = false;
         let mut t = [0f32; WIDTH];
-        'visit: loop {
+        loop {
             let node = &self.nodes[index as usize];
             visited += 1;
             let hit = lanes.test(node, t_max, &mut t);
@@ -631,31 +640,19 @@ impl Bvh8 {
                 next = Some(child);
             }
             let mut bits = hit & node.leaves as u32;
-            let mut batch = [0u32; WIDTH];
+            let mut leaves = [(0u32, 0u32); WIDTH];
             let mut n = 0;
             while bits != 0 {
                 let k = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                let first = node.child[k] & !LEAF;
-                for prim in first..first + node.count[k] as u32 {
-                    if n == WIDTH {
-                        tests += n as u64;
-                        if test(&batch) {
-                            found = true;
-                            break 'visit;
-                        }
-                        n = 0;
-                    }
-                    batch[n] = prim;
-                    n += 1;
-                }
+                let count = node.count[k] as u32;
+                tests += count as u64;
+                leaves[n] = (node.child[k] & !LEAF, count);
+                n += 1;
             }
-            if n > 0 {
-                tests += n as u64;
-                if test(&batch[..n]) {
-                    found = true;
-                    break;
-                }
+            if n > 0 && test(&leaves[..n]) {
+                found = true;
+                break;
             }
             index = match next.or_else(|| stack.pop()) {
                 Some(c) => c,
@@ -987,24 +984,35 @@ mod tests {
             );
             // The path taken where the CPU lacks AVX.
             let portable = PortableLanes::new(&RaySetup::new(&ray));
-            let nearest = |prims: &[u32], t_max: f32| {
-                assert!(!prims.is_empty() && prims.len() <= WIDTH);
-                prims
+            let nearest = |leaves: &[(u32, u32)], t_max: f32| {
+                assert!(!leaves.is_empty() && leaves.len() <= WIDTH);
+                assert!(
+                    leaves
+                        .iter()
+                        .all(|l| l.1 >= 1 && l.1 as usize <= super::super::bvh::MAX_LEAF)
+                );
+                leaves
                     .iter()
-                    .filter_map(|&p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
+                    .flat_map(|&(first, count)| first..first + count)
+                    .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
                     .min_by(|x, y| x.1.total_cmp(&y.1))
             };
             let got = wide.closest_with(ray.t_max, &mut counters, nearest, &portable);
             assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
-            let any = |prims: &[u32]| prims.iter().any(|&p| t_of(p).is_some());
+            let any = |leaves: &[(u32, u32)]| {
+                leaves
+                    .iter()
+                    .flat_map(|&(first, count)| first..first + count)
+                    .any(|p| t_of(p).is_some())
+            };
             assert_eq!(
                 wide.any_with(ray.t_max, &mut counters, any, &portable),
                 brute.is_some()
             );
-            // And the batched entry points.
-            let got = wide.closest_batch(&ray, &mut counters, nearest);
+            // And the per-leaf entry points.
+            let got = wide.closest_leaves(&ray, &mut counters, nearest);
             assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
-            assert_eq!(wide.any_batch(&ray, &mut counters, any), brute.is_some());
+            assert_eq!(wide.any_leaves(&ray, &mut counters, any), brute.is_some());
         }
     }
 }

@@ -21,19 +21,34 @@ pub struct Mesh {
     pub uvs: Vec<Vec2>,
     /// 8-wide BVH, collapsed from the binary SAH BVH.
     pub bvh: Bvh8,
-    /// For meshes of at most [`LANE_CACHE_TRIANGLES`] triangles: entry `k`
-    /// holds triangles `k .. k + 4` (the last ones repeat triangle `k`) in
-    /// structure-of-arrays form, so that a leaf's triangles are tested
-    /// without gathering their vertices through the index array.
+    /// For meshes of at most [`LEAF_BLOCK_TRIANGLES`] triangles: every
+    /// leaf's triangles, four to a block in structure-of-arrays form (first
+    /// vertex and edges, as the test uses them; a last block's spare lanes
+    /// repeat its first triangle), the blocks of sibling leaves next to each
+    /// other. A leaf is then tested without gathering its vertices through
+    /// the index array (Wald et al. 2014, Embree's `Triangle4v`).
+    blocks: Vec<TriangleLanes>,
+    /// For the same meshes: the first block of the leaf that starts at
+    /// triangle `k` (entries of triangles that start no leaf are unused).
+    leaf_block: Vec<u32>,
+    /// For meshes of at most [`SMALL_MESH_TRIANGLES`] triangles, instead
+    /// of blocks: entry `k` holds triangles `k .. k + 4` (the last ones
+    /// repeat triangle `k`), so that the triangles of a node's leaves are
+    /// tested four at a time across leaves (small meshes have small leaves,
+    /// such as the two triangles of a wall).
     lanes: Vec<TriangleLanes>,
     /// For the same small meshes: each triangle's unit normal, computed once.
     face_normals: Vec<Vec3>,
 }
 
-/// Meshes up to this many triangles keep their triangles gathered in lanes
-/// and their face normals (160 bytes per triangle, so at most 655 KB a mesh;
-/// larger meshes, whose 52 bytes per triangle matter, gather and compute).
-pub const LANE_CACHE_TRIANGLES: usize = 1 << 12;
+/// Meshes up to this many triangles keep their leaves' triangles in blocks
+/// (about 50 bytes per triangle besides the 52 of vertices, indices and
+/// BVH: at most about 420 MB a mesh); larger ones gather their vertices.
+pub const LEAF_BLOCK_TRIANGLES: usize = 1 << 23;
+
+/// Meshes up to this many triangles keep lanes per triangle and face normals
+/// (160 bytes per triangle, at most 655 KB a mesh) rather than leaf blocks.
+pub const SMALL_MESH_TRIANGLES: usize = 1 << 12;
 
 /// Why a mesh could not be built from its arrays.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -108,17 +123,52 @@ impl Mesh {
             indices: Vec::new(),
         };
         let bvh = Bvh8::from_binary(&binary);
+        drop(binary);
         let mut mesh = Mesh {
             positions,
             triangles,
             normals,
             uvs,
             bvh,
+            blocks: Vec::new(),
+            leaf_block: Vec::new(),
             lanes: Vec::new(),
             face_normals: Vec::new(),
         };
         let n = mesh.triangles.len();
-        if n <= LANE_CACHE_TRIANGLES {
+        let leaves: Vec<(u32, u32)> = if n > SMALL_MESH_TRIANGLES && n <= LEAF_BLOCK_TRIANGLES {
+            mesh.bvh.leaves().collect()
+        } else {
+            Vec::new()
+        };
+        let mut starts = Vec::with_capacity(leaves.len());
+        let mut total = 0u32;
+        for &(_, count) in &leaves {
+            starts.push(total);
+            total += count.div_ceil(LANES as u32);
+        }
+        // The blocks are an acceleration: they are left out where they would
+        // take more than half the memory left (most of a ray's time then goes
+        // to gathering vertices, but the mesh renders).
+        let block_bytes = total as u64 * std::mem::size_of::<TriangleLanes>() as u64 + 4 * n as u64;
+        let room = crate::render::memory::available_bytes().is_none_or(|a| block_bytes < a / 2);
+        if !leaves.is_empty() && room {
+            mesh.leaf_block = vec![u32::MAX; n];
+            for (&(first, _), &start) in leaves.iter().zip(&starts) {
+                mesh.leaf_block[first as usize] = start;
+            }
+            mesh.blocks = leaves
+                .par_iter()
+                .flat_map_iter(|&(first, count)| {
+                    (0..count.div_ceil(LANES as u32)).map(move |j| {
+                        let lo = first + j * LANES as u32;
+                        lo..(lo + LANES as u32).min(first + count)
+                    })
+                })
+                .map(|prims| mesh.gather(&prims.collect::<Vec<u32>>()))
+                .collect();
+        }
+        if n <= SMALL_MESH_TRIANGLES {
             mesh.lanes = (0..n as u32)
                 .map(|k| {
                     let prims: Vec<u32> = (k..(k + LANES as u32).min(n as u32)).collect();
@@ -141,7 +191,8 @@ impl Mesh {
 
     /// Bytes of vertex, index and BVH data.
     pub fn bytes(&self) -> usize {
-        self.lanes.len() * std::mem::size_of::<TriangleLanes>()
+        (self.blocks.len() + self.lanes.len()) * std::mem::size_of::<TriangleLanes>()
+            + self.leaf_block.len() * 4
             + self.face_normals.len() * std::mem::size_of::<Vec3>()
             + self.positions.len() * 12
             + self.triangles.len() * 12
@@ -161,19 +212,88 @@ impl Mesh {
         )
     }
 
-    /// The lanes of `chunk` (at most [`LANES`] triangles) and the mask of
-    /// the lanes that are its own: from the cache when the chunk is a run of
-    /// consecutive triangles (a leaf's), else gathered.
+    /// Calls `visit(lanes, own, prims)` for the triangles of `leaves` (a
+    /// node's, as [`Bvh8::closest_leaves`] gives them), four at a time:
+    /// lane `i` holds triangle `prims[i]` where bit `i` of `own` is set.
+    /// Stops when `visit` returns true, and returns whether it did. Small
+    /// meshes batch triangles across leaves from [`Mesh::lanes`]; larger
+    /// ones test leaf by leaf, from [`Mesh::blocks`] where they keep them,
+    /// else gathering vertices.
     #[inline(always)]
-    fn lanes_of(&self, chunk: &[u32]) -> (TriangleLanes, u32) {
-        let first = chunk[0];
-        let own = (1u32 << chunk.len()) - 1;
-        if let Some(lanes) = self.lanes.get(first as usize)
-            && chunk[chunk.len() - 1] == first + chunk.len() as u32 - 1
-        {
-            return (*lanes, own);
+    fn node_lanes(
+        &self,
+        leaves: &[(u32, u32)],
+        mut visit: impl FnMut(&TriangleLanes, u32, &[u32; LANES]) -> bool,
+    ) -> bool {
+        if !self.lanes.is_empty() {
+            let mut batch = [0u32; LANES];
+            let mut n = 0;
+            let mut flush = |batch: &[u32; LANES], n: usize| {
+                let own = (1u32 << n) - 1;
+                let first = batch[0];
+                if batch[n - 1] == first + n as u32 - 1 {
+                    visit(&self.lanes[first as usize], own, batch)
+                } else {
+                    visit(&self.gather(&batch[..n]), own, batch)
+                }
+            };
+            for &(first, count) in leaves {
+                for prim in first..first + count {
+                    if n == LANES {
+                        if flush(&batch, n) {
+                            return true;
+                        }
+                        n = 0;
+                    }
+                    batch[n] = prim;
+                    n += 1;
+                }
+            }
+            return n > 0 && flush(&batch, n);
         }
-        (self.gather(chunk), own)
+        leaves
+            .iter()
+            .any(|&(first, count)| self.leaf_lanes(first, count, &mut visit))
+    }
+
+    /// [`Mesh::node_lanes`] for one leaf of a mesh without [`Mesh::lanes`].
+    #[inline(always)]
+    fn leaf_lanes(
+        &self,
+        first: u32,
+        count: u32,
+        mut visit: impl FnMut(&TriangleLanes, u32, &[u32; LANES]) -> bool,
+    ) -> bool {
+        let blocks = count.div_ceil(LANES as u32);
+        let own = |j: u32| {
+            let left = count - j * LANES as u32;
+            if left >= LANES as u32 {
+                (1u32 << LANES) - 1
+            } else {
+                (1u32 << left) - 1
+            }
+        };
+        let prims = |j: u32| {
+            let base = first + j * LANES as u32;
+            std::array::from_fn(|i| base + i as u32)
+        };
+        if let Some(&start) = self.leaf_block.get(first as usize) {
+            let leaf = &self.blocks[start as usize..(start + blocks) as usize];
+            for (j, lanes) in (0..).zip(leaf) {
+                if visit(lanes, own(j), &prims(j)) {
+                    return true;
+                }
+            }
+            return false;
+        }
+        for j in 0..blocks {
+            let p = prims(j);
+            let n = own(j).count_ones() as usize;
+            if visit(&self.gather(&p[..n]), own(j), &p) {
+                return true;
+            }
+        }
+        false
     }
 
     /// Up to [`LANES`] triangles, one per lane; lanes past `prims.len()`
@@ -202,18 +322,16 @@ impl Mesh {
     #[inline]
     pub fn intersect_object(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
         let mut bary = (0.0, 0.0);
-        let (prim, t) = self.bvh.closest_batch(
+        let (prim, t) = self.bvh.closest_leaves(
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |prims, mut t_max| {
+            |leaves, mut t_max| {
                 let mut best = None;
-                for chunk in prims.chunks(LANES) {
-                    let (lanes, own) = self.lanes_of(chunk);
-                    let h = intersect_mt_lanes(ray.o, ray.d, &lanes, ray.t_min, t_max);
-                    // The nearest lane, the first of equals (padding lanes
-                    // repeat lane 0, so they never win; cached lanes past the
-                    // chunk are masked off).
+                self.node_lanes(leaves, |lanes, own, prims| {
+                    let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, t_max);
+                    // The nearest lane, the first of equals (spare lanes are
+                    // masked off).
                     let mut bits = h.mask & own;
                     while bits != 0 {
                         let i = bits.trailing_zeros() as usize;
@@ -221,10 +339,11 @@ impl Mesh {
                         if h.t[i] < t_max {
                             t_max = h.t[i];
                             bary = (h.b1[i], h.b2[i]);
-                            best = Some((chunk[i], t_max));
+                            best = Some((prims[i], t_max));
                         }
                     }
-                }
+                    false
+                });
                 best
             },
         )?;
@@ -239,21 +358,15 @@ impl Mesh {
     /// Whether an object-space ray's segment meets the mesh (any hit).
     #[inline]
     pub fn occludes_object(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
-        self.bvh.any_batch(
+        self.bvh.any_leaves(
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |prims| {
-                // A plain loop: `Iterator::any` here compiled to a call that
-                // splatted the ray anew for every leaf batch.
-                for chunk in prims.chunks(LANES) {
-                    let (lanes, own) = self.lanes_of(chunk);
-                    let h = intersect_mt_lanes(ray.o, ray.d, &lanes, ray.t_min, ray.t_max);
-                    if h.mask & own != 0 {
-                        return true;
-                    }
-                }
-                false
+            |leaves| {
+                self.node_lanes(leaves, |lanes, own, _| {
+                    let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, ray.t_max);
+                    h.mask & own != 0
+                })
             },
         )
     }
