@@ -50,10 +50,14 @@ fn random_soup(n: usize, seed: u64) -> Mesh {
 
 #[test]
 fn bvh_matches_brute_force_over_100k_rays() {
+    // Small meshes (lanes per triangle, batched across leaves), and two
+    // larger than glint::geometry::mesh's 4,096 (leaf blocks).
     let meshes = [
         random_soup(3000, 1),
         mesh(icosphere(3, 2.0)),
         mesh(torus(2.0, 0.6, 40, 20)),
+        random_soup(6000, 2),
+        mesh(torus(2.0, 0.6, 96, 48)),
     ];
     for (k, m) in meshes.iter().enumerate() {
         let bvh_ok = m.bvh.validate(
@@ -66,7 +70,11 @@ fn bvh_matches_brute_force_over_100k_rays() {
                 .collect::<Vec<_>>(),
         );
         assert!(bvh_ok.is_ok(), "{bvh_ok:?}");
-        let rays = if k == 0 { 40_000 } else { 30_000 };
+        let rays = match k {
+            0 => 40_000,
+            1 | 2 => 30_000,
+            _ => 4_000,
+        };
         let mismatches: usize = (0..rays)
             .into_par_iter()
             .map(|i| {
