@@ -13,6 +13,9 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+#[cfg(feature = "view")]
+mod view;
+
 /// glint: a Whitted-style ray tracer.
 ///
 /// With no arguments, renders the built-in Whitted scene to `whitted.png`.
@@ -27,6 +30,12 @@ struct Cli {
 enum Command {
     /// Render a scene file (or the built-in Whitted scene) to PNG or EXR.
     Render(RenderArgs),
+    /// Show a scene in a window, rendered progressively: drag to orbit
+    /// (left button) or pan (other buttons), scroll to zoom, W/A/S/D to
+    /// move, 1/2/3 for raycast/whitted/path, +/− for the depth, R to go
+    /// back to the scene's camera, P to save a PNG, Esc to quit.
+    #[cfg(feature = "view")]
+    View(ViewArgs),
     /// Load a mesh file (PLY, OBJ, glTF) and print its counts, bounds, load
     /// and BVH build time and memory.
     Info {
@@ -322,6 +331,8 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Render(args)) => run_render(args),
+        #[cfg(feature = "view")]
+        Some(Command::View(args)) => run_view(args),
         Some(Command::Info { mesh }) => run_info(&mesh),
         Some(Command::Explain(args)) => run_explain(args),
         Some(Command::Farm {
@@ -338,6 +349,114 @@ fn main() {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// What `glint view` takes.
+#[cfg(feature = "view")]
+#[derive(Args, Debug)]
+struct ViewArgs {
+    /// Scene file, or mesh file (as for `glint render`); the built-in
+    /// Whitted scene if omitted.
+    scene: Option<PathBuf>,
+    /// Window width in pixels (default: the scene's image width).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    width: Option<u32>,
+    /// Window height in pixels.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    height: Option<u32>,
+    /// raycast, whitted or path (default: the scene's).
+    #[arg(long, value_parser = parse_integrator)]
+    integrator: Option<IntegratorKind>,
+    /// Maximum recursion depth.
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(i32).range(-1..=MAX_DEPTH as i64))]
+    max_depth: Option<i32>,
+    /// Render threads (0: all cores).
+    #[arg(long)]
+    threads: Option<u32>,
+    /// Close the window after this many passes (one sample per pixel each);
+    /// for scripts and tests.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=MAX_SPP as i64))]
+    frames: Option<u32>,
+    /// On closing, save what the window shows to this PNG.
+    #[arg(long, value_name = "FILE.png")]
+    screenshot: Option<PathBuf>,
+    /// For a mesh file as SCENE: direction from the mesh's centre to the eye.
+    #[arg(long, value_parser = parse_vec3, default_value = "0.35,0.3,1", allow_hyphen_values = true)]
+    view: glint::math::Vec3,
+    /// For a mesh file as SCENE: the up axis.
+    #[arg(long, value_parser = parse_vec3, default_value = "0,1,0", allow_hyphen_values = true)]
+    up: glint::math::Vec3,
+}
+
+#[cfg(feature = "view")]
+fn run_view(args: ViewArgs) -> Result<()> {
+    if let Some(path) = &args.screenshot
+        && ImageFormat::from_path(path) != Some(ImageFormat::Png)
+    {
+        bail!("cannot write `{}`: a screenshot is a .png", path.display());
+    }
+    let (file, _, _) = load_scene(args.scene.as_deref(), args.view, args.up)?;
+    for w in &file.warnings {
+        eprintln!("warning: {w}");
+    }
+    let mut settings = file.settings;
+    if let Some(w) = args.width {
+        settings.width = w;
+    }
+    if let Some(h) = args.height {
+        settings.height = h;
+    }
+    if let Some(i) = args.integrator {
+        settings.integrator = i;
+    }
+    if let Some(d) = args.max_depth {
+        settings.max_depth = d;
+    }
+    if let Some(t) = args.threads {
+        settings.threads = t as usize;
+    }
+    settings.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
+    view::run(
+        file.scene,
+        settings,
+        view::ViewOptions {
+            frames: args.frames,
+            screenshot: args.screenshot,
+        },
+    )
+}
+
+/// The scene to render or view: a scene file, a mesh file framed by a
+/// default camera and light (seen from `view`, with `up` up), or the
+/// built-in Whitted scene; with a name for messages and the bytes that
+/// fingerprint where it came from.
+fn load_scene(
+    scene: Option<&Path>,
+    view: glint::math::Vec3,
+    up: glint::math::Vec3,
+) -> Result<(SceneFile, String, Vec<u8>)> {
+    Ok(match scene {
+        Some(path) if is_mesh_file(path) => {
+            let model = scene::meshio::load_mesh_file(path)?;
+            let file = scene::mesh_scene(&model, view, up)
+                .with_context(|| format!("cannot show `{}`", path.display()))?;
+            let source = format!("mesh {:?} view {} up {}", path.file_name(), view, up);
+            (file, path.display().to_string(), source.into_bytes())
+        }
+        Some(path) => (
+            scene::load_scene_file(path)?,
+            path.display().to_string(),
+            Vec::new(),
+        ),
+        None => (
+            scene::parse_scene(
+                scene::BUILTIN_WHITTED,
+                Path::new("scenes/whitted.toml (built in)"),
+            )?,
+            "the built-in Whitted scene".to_string(),
+            Vec::new(),
+        ),
+    })
 }
 
 fn run_render(args: RenderArgs) -> Result<()> {
@@ -403,33 +522,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         },
         scene_name,
         source,
-    ) = match &args.scene {
-        Some(path) if is_mesh_file(path) => {
-            let model = scene::meshio::load_mesh_file(path)?;
-            let file = scene::mesh_scene(&model, args.view, args.up)
-                .with_context(|| format!("cannot show `{}`", path.display()))?;
-            let source = format!(
-                "mesh {:?} view {} up {}",
-                path.file_name(),
-                args.view,
-                args.up
-            );
-            (file, path.display().to_string(), source.into_bytes())
-        }
-        Some(path) => (
-            scene::load_scene_file(path)?,
-            path.display().to_string(),
-            Vec::new(),
-        ),
-        None => (
-            scene::parse_scene(
-                scene::BUILTIN_WHITTED,
-                Path::new("scenes/whitted.toml (built in)"),
-            )?,
-            "the built-in Whitted scene".to_string(),
-            Vec::new(),
-        ),
-    };
+    ) = load_scene(args.scene.as_deref(), args.view, args.up)?;
     // A scene file is fingerprinted by its description (not its text, so
     // comments and layout do not count), without its render settings: the
     // ones that change pixels are added below, after the command line's.

@@ -108,6 +108,80 @@ pub fn render_with<I: Integrator>(
     Ok((film, render_stats(settings, &counters, threads, seconds)))
 }
 
+/// A film that whole samples per pixel are added to pass by pass, for an
+/// interactive view: after passes of `a` and `b` samples its image is, bit
+/// for bit, the render of `a + b` samples (the passes are sample ranges,
+/// added into exact sums).
+pub struct Progressive {
+    settings: RenderSettings,
+    integrator: AnyIntegrator,
+    film: Film,
+    done: u32,
+    counters: TileCounters,
+}
+
+impl Progressive {
+    /// An empty film for `settings` (its `spp` and `sample_offset` are
+    /// ignored: passes say how many samples they add).
+    pub fn new(settings: &RenderSettings) -> Result<Self, RenderError> {
+        let settings = RenderSettings {
+            spp: 1,
+            sample_offset: 0,
+            ..settings.clone()
+        };
+        let options = FilmOptions {
+            keep_sums: true,
+            aovs: Vec::new(),
+        };
+        Ok(Progressive {
+            film: new_film(&settings, &options)?,
+            integrator: AnyIntegrator::new(&settings),
+            settings,
+            done: 0,
+            counters: TileCounters::default(),
+        })
+    }
+
+    /// Adds `count` samples per pixel (the next ones in each pixel's
+    /// sequence); returns the rays they took.
+    pub fn add(&mut self, scene: &Scene, count: u32) -> Result<u64, RenderError> {
+        let pass = RenderSettings {
+            spp: count.max(1),
+            sample_offset: self.done,
+            ..self.settings.clone()
+        };
+        let total = (self.done + pass.spp) as u64;
+        let (counters, _) = run_tiles(
+            scene,
+            &pass,
+            &self.integrator,
+            &|_| {},
+            &mut self.film,
+            Some(total),
+        )?;
+        self.done += pass.spp;
+        self.film.header.samples.count = self.done;
+        let rays = counters.rays.total();
+        self.counters += counters;
+        Ok(rays)
+    }
+
+    /// The mean of the samples so far.
+    pub fn image(&self) -> &Image {
+        &self.film.image
+    }
+
+    /// Samples per pixel so far.
+    pub fn samples(&self) -> u32 {
+        self.done
+    }
+
+    /// The film so far (for writing it as `glint render` would).
+    pub fn film(&self) -> &Film {
+        &self.film
+    }
+}
+
 /// Renders `settings` in passes of whole samples per pixel (1, 1, 2, 4, 8,
 /// then the largest power of two, else multiple of 4, that the time left
 /// affords) until `settings.spp` are done or the next pass would

@@ -72,6 +72,16 @@ impl Camera {
     pub fn forward(&self) -> Vec3 {
         self.forward
     }
+
+    /// The unit up direction of the image (perpendicular to the view).
+    pub fn up(&self) -> Vec3 {
+        self.up
+    }
+
+    /// The vertical field of view, in degrees.
+    pub fn fov_y_deg(&self) -> f32 {
+        (2.0 * self.tan_half_fov.atan()).to_degrees()
+    }
 }
 
 #[cfg(test)]
