@@ -51,10 +51,10 @@ impl Orbit {
     /// The orbit that reproduces `camera`, around the point at `distance`
     /// along its view.
     fn from_camera(camera: &Camera, distance: f32) -> Orbit {
+        // Around the image's up direction (perpendicular to the view, so
+        // the scene's camera is the orbit at pitch 0).
         let up = camera.up();
         let forward = camera.forward();
-        // Keep the scene's up axis where it is nearly vertical; the image's
-        // up otherwise is fine too (it is perpendicular to the view).
         let (b1, b2) = glint::math::orthonormal_basis(up);
         let back = -forward;
         let pitch = back.dot(up).clamp(-1.0, 1.0).asin();
