@@ -123,7 +123,8 @@ impl Viewer {
             self.film = Some(Progressive::new(&self.settings)?);
         }
         let film = self.film.as_mut().expect("made above");
-        let rays = film.add(&self.scene, 1)?;
+        let (counters, _) = film.add(&self.scene, 1, &|_| {})?;
+        let rays = counters.rays.total();
         self.passes += 1;
         self.window_rays += rays;
         self.window_frames += 1;

@@ -165,7 +165,10 @@ impl Mesh {
                         lo..(lo + LANES as u32).min(first + count)
                     })
                 })
-                .map(|prims| mesh.gather(&prims.collect::<Vec<u32>>()))
+                .map(|prims| {
+                    let ids: [u32; LANES] = std::array::from_fn(|i| prims.start + i as u32);
+                    mesh.gather(&ids[..prims.len()])
+                })
                 .collect();
         }
         if n <= SMALL_MESH_TRIANGLES {

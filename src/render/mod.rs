@@ -108,25 +108,24 @@ pub fn render_with<I: Integrator>(
     Ok((film, render_stats(settings, &counters, threads, seconds)))
 }
 
-/// A film that whole samples per pixel are added to pass by pass, for an
-/// interactive view: after passes of `a` and `b` samples its image is, bit
-/// for bit, the render of `a + b` samples (the passes are sample ranges,
-/// added into exact sums).
+/// A film that whole samples per pixel are added to pass by pass (for
+/// `--time` and the viewer): after passes of `a` and `b` samples its image
+/// is, bit for bit, the render of `a + b` samples (the passes are sample
+/// ranges, added into exact sums).
 pub struct Progressive {
     settings: RenderSettings,
     integrator: AnyIntegrator,
     film: Film,
     done: u32,
-    counters: TileCounters,
 }
 
 impl Progressive {
-    /// An empty film for `settings` (its `spp` and `sample_offset` are
-    /// ignored: passes say how many samples they add).
+    /// An empty film for `settings`, whose samples start at its
+    /// `sample_offset` (its `spp` is ignored: passes say how many samples
+    /// they add).
     pub fn new(settings: &RenderSettings) -> Result<Self, RenderError> {
         let settings = RenderSettings {
             spp: 1,
-            sample_offset: 0,
             ..settings.clone()
         };
         let options = FilmOptions {
@@ -138,32 +137,35 @@ impl Progressive {
             integrator: AnyIntegrator::new(&settings),
             settings,
             done: 0,
-            counters: TileCounters::default(),
         })
     }
 
     /// Adds `count` samples per pixel (the next ones in each pixel's
-    /// sequence); returns the rays they took.
-    pub fn add(&mut self, scene: &Scene, count: u32) -> Result<u64, RenderError> {
+    /// sequence), calling `progress` with pixels done; returns the work done
+    /// and the threads that did it.
+    pub fn add(
+        &mut self,
+        scene: &Scene,
+        count: u32,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<(TileCounters, usize), RenderError> {
         let pass = RenderSettings {
             spp: count.max(1),
-            sample_offset: self.done,
+            sample_offset: self.settings.sample_offset + self.done,
             ..self.settings.clone()
         };
         let total = (self.done + pass.spp) as u64;
-        let (counters, _) = run_tiles(
+        let done = run_tiles(
             scene,
             &pass,
             &self.integrator,
-            &|_| {},
+            progress,
             &mut self.film,
             Some(total),
         )?;
         self.done += pass.spp;
         self.film.header.samples.count = self.done;
-        let rays = counters.rays.total();
-        self.counters += counters;
-        Ok(rays)
+        Ok(done)
     }
 
     /// The mean of the samples so far.
@@ -176,9 +178,9 @@ impl Progressive {
         self.done
     }
 
-    /// The film so far (for writing it as `glint render` would).
-    pub fn film(&self) -> &Film {
-        &self.film
+    /// The film so far.
+    pub fn into_film(self) -> Film {
+        self.film
     }
 }
 
@@ -206,7 +208,7 @@ pub fn render_timed(
     // Without AOVs the passes add into one film; with them each pass has a
     // film of its own, merged (AOVs of several passes need merging rules).
     let mut film = if in_place {
-        Some(new_film(settings, &pass_options)?)
+        Some(Progressive::new(settings)?)
     } else {
         None
     };
@@ -226,14 +228,7 @@ pub fn render_timed(
         let scaled = |n: u64| progress(n * count as u64);
         let counters = match &mut film {
             Some(film) => {
-                let (counters, t) = run_tiles(
-                    scene,
-                    &pass_settings,
-                    &integrator,
-                    &scaled,
-                    film,
-                    Some((done + count) as u64),
-                )?;
+                let (counters, t) = film.add(scene, count, &scaled)?;
                 threads = t;
                 counters
             }
@@ -288,10 +283,7 @@ pub fn render_timed(
     }
     let seconds_render = start.elapsed().as_secs_f64();
     let mut film = match film {
-        Some(mut film) => {
-            film.header.samples.count = done;
-            film
-        }
+        Some(film) => film.into_film(),
         None => {
             let mut merger = merger.expect("at least one pass is rendered");
             merger.set_sample_count(done);
