@@ -94,8 +94,8 @@ struct Viewer {
     window: Option<Rc<Window>>,
     surface: Option<softbuffer::Surface<Rc<Window>, Rc<Window>>>,
     passes: u32,
-    drag: Option<(MouseButton, (f64, f64))>,
     cursor: (f64, f64),
+    /// The buttons held, the last pressed last (it decides what a drag does).
     buttons: Vec<MouseButton>,
     error: Option<anyhow::Error>,
     /// Frames and rays since the title last changed.
@@ -227,7 +227,7 @@ impl Viewer {
     fn mouse_moved(&mut self, x: f64, y: f64) {
         let (dx, dy) = ((x - self.cursor.0) as f32, (y - self.cursor.1) as f32);
         self.cursor = (x, y);
-        let Some((button, _)) = self.drag else {
+        let Some(&button) = self.buttons.last() else {
             return;
         };
         match button {
@@ -328,11 +328,9 @@ impl ApplicationHandler for Viewer {
             WindowEvent::MouseInput { state, button, .. } => match state {
                 ElementState::Pressed => {
                     self.buttons.push(button);
-                    self.drag = Some((button, self.cursor));
                 }
                 ElementState::Released => {
                     self.buttons.retain(|&b| b != button);
-                    self.drag = self.buttons.last().map(|&b| (b, self.cursor));
                 }
             },
             WindowEvent::MouseWheel { delta, .. } => {
@@ -383,7 +381,6 @@ pub fn run(scene: Scene, settings: RenderSettings, options: ViewOptions) -> Resu
         window: None,
         surface: None,
         passes: 0,
-        drag: None,
         cursor: (0.0, 0.0),
         buttons: Vec::new(),
         error: None,
