@@ -35,7 +35,7 @@ enum Command {
     /// move, 1/2/3 for raycast/whitted/path, +/− for the depth, R to go
     /// back to the scene's camera, P to save a PNG, Esc to quit.
     #[cfg(feature = "view")]
-    View(ViewArgs),
+    View(view::ViewArgs),
     /// Load a mesh file (PLY, OBJ, glTF) and print its counts, bounds, load
     /// and BVH build time and memory.
     Info {
@@ -145,12 +145,8 @@ struct RenderArgs {
     /// Also write the statistics as JSON to this file.
     #[arg(long, value_name = "FILE")]
     stats_json: Option<PathBuf>,
-    /// For a mesh file as SCENE: direction from the mesh's centre to the eye.
-    #[arg(long, value_parser = parse_vec3, default_value = "0.35,0.3,1", allow_hyphen_values = true)]
-    view: glint::math::Vec3,
-    /// For a mesh file as SCENE: the up axis (0,0,1 for z-up scans).
-    #[arg(long, value_parser = parse_vec3, default_value = "0,1,0", allow_hyphen_values = true)]
-    up: glint::math::Vec3,
+    #[command(flatten)]
+    mesh: MeshView,
     /// Print nothing but errors.
     #[arg(long, short)]
     quiet: bool,
@@ -198,11 +194,8 @@ struct ExplainArgs {
     /// Rays whose weight falls below this are not traced (Whitted).
     #[arg(long, value_parser = parse_weight)]
     min_weight: Option<f32>,
-    /// For a mesh file as SCENE (as for render).
-    #[arg(long, value_parser = parse_vec3, default_value = "0.35,0.3,1", allow_hyphen_values = true)]
-    view: glint::math::Vec3,
-    #[arg(long, value_parser = parse_vec3, default_value = "0,1,0", allow_hyphen_values = true)]
-    up: glint::math::Vec3,
+    #[command(flatten)]
+    mesh: MeshView,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -265,6 +258,26 @@ struct SlurmArgs {
     /// `-- --width 1920 --height 1080`).
     #[arg(last = true)]
     render_args: Vec<String>,
+}
+
+/// How a mesh file given as SCENE is framed (see `glint render --help`).
+#[derive(Args, Debug, Clone, Copy)]
+struct MeshView {
+    /// For a mesh file as SCENE: direction from the mesh's centre to the eye.
+    #[arg(long, value_parser = parse_vec3, default_value = "0.35,0.3,1", allow_hyphen_values = true)]
+    view: glint::math::Vec3,
+    /// For a mesh file as SCENE: the up axis (0,0,1 for z-up scans).
+    #[arg(long, value_parser = parse_vec3, default_value = "0,1,0", allow_hyphen_values = true)]
+    up: glint::math::Vec3,
+}
+
+impl Default for MeshView {
+    fn default() -> Self {
+        MeshView {
+            view: glint::math::Vec3::new(0.35, 0.3, 1.0),
+            up: glint::math::Vec3::Y,
+        }
+    }
 }
 
 fn parse_integrator(s: &str) -> Result<IntegratorKind, String> {
@@ -332,7 +345,7 @@ fn main() {
     let result = match cli.command {
         Some(Command::Render(args)) => run_render(args),
         #[cfg(feature = "view")]
-        Some(Command::View(args)) => run_view(args),
+        Some(Command::View(args)) => view::run_view(args),
         Some(Command::Info { mesh }) => run_info(&mesh),
         Some(Command::Explain(args)) => run_explain(args),
         Some(Command::Farm {
@@ -351,90 +364,12 @@ fn main() {
     }
 }
 
-/// What `glint view` takes.
-#[cfg(feature = "view")]
-#[derive(Args, Debug)]
-struct ViewArgs {
-    /// Scene file, or mesh file (as for `glint render`); the built-in
-    /// Whitted scene if omitted.
-    scene: Option<PathBuf>,
-    /// Window width in pixels (default: the scene's image width).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
-    width: Option<u32>,
-    /// Window height in pixels.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
-    height: Option<u32>,
-    /// raycast, whitted or path (default: the scene's).
-    #[arg(long, value_parser = parse_integrator)]
-    integrator: Option<IntegratorKind>,
-    /// Maximum recursion depth.
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(i32).range(-1..=MAX_DEPTH as i64))]
-    max_depth: Option<i32>,
-    /// Render threads (0: all cores).
-    #[arg(long)]
-    threads: Option<u32>,
-    /// Close the window after this many passes (one sample per pixel each);
-    /// for scripts and tests.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=MAX_SPP as i64))]
-    frames: Option<u32>,
-    /// On closing, save what the window shows to this PNG.
-    #[arg(long, value_name = "FILE.png")]
-    screenshot: Option<PathBuf>,
-    /// For a mesh file as SCENE: direction from the mesh's centre to the eye.
-    #[arg(long, value_parser = parse_vec3, default_value = "0.35,0.3,1", allow_hyphen_values = true)]
-    view: glint::math::Vec3,
-    /// For a mesh file as SCENE: the up axis.
-    #[arg(long, value_parser = parse_vec3, default_value = "0,1,0", allow_hyphen_values = true)]
-    up: glint::math::Vec3,
-}
-
-#[cfg(feature = "view")]
-fn run_view(args: ViewArgs) -> Result<()> {
-    if let Some(path) = &args.screenshot
-        && ImageFormat::from_path(path) != Some(ImageFormat::Png)
-    {
-        bail!("cannot write `{}`: a screenshot is a .png", path.display());
-    }
-    let (file, _, _) = load_scene(args.scene.as_deref(), args.view, args.up)?;
-    for w in &file.warnings {
-        eprintln!("warning: {w}");
-    }
-    let mut settings = file.settings;
-    if let Some(w) = args.width {
-        settings.width = w;
-    }
-    if let Some(h) = args.height {
-        settings.height = h;
-    }
-    if let Some(i) = args.integrator {
-        settings.integrator = i;
-    }
-    if let Some(d) = args.max_depth {
-        settings.max_depth = d;
-    }
-    if let Some(t) = args.threads {
-        settings.threads = t as usize;
-    }
-    settings.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
-    view::run(
-        file.scene,
-        settings,
-        view::ViewOptions {
-            frames: args.frames,
-            screenshot: args.screenshot,
-        },
-    )
-}
-
-/// The scene to render or view: a scene file, a mesh file framed by a
-/// default camera and light (seen from `view`, with `up` up), or the
+/// The scene to render, explain or view: a scene file, a mesh file framed
+/// by a default camera and light (seen from `mesh.view`, with `mesh.up` up), or the
 /// built-in Whitted scene; with a name for messages and the bytes that
 /// fingerprint where it came from.
-fn load_scene(
-    scene: Option<&Path>,
-    view: glint::math::Vec3,
-    up: glint::math::Vec3,
-) -> Result<(SceneFile, String, Vec<u8>)> {
+fn load_scene(scene: Option<&Path>, mesh: MeshView) -> Result<(SceneFile, String, Vec<u8>)> {
+    let MeshView { view, up } = mesh;
     Ok(match scene {
         Some(path) if is_mesh_file(path) => {
             let model = scene::meshio::load_mesh_file(path)?;
@@ -522,7 +457,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         },
         scene_name,
         source,
-    ) = load_scene(args.scene.as_deref(), args.view, args.up)?;
+    ) = load_scene(args.scene.as_deref(), args.mesh)?;
     // A scene file is fingerprinted by its description (not its text, so
     // comments and layout do not count), without its render settings: the
     // ones that change pixels are added below, after the command line's.
@@ -725,18 +660,7 @@ fn peak_rss_bytes() -> Option<u64> {
 
 fn run_explain(args: ExplainArgs) -> Result<()> {
     use glint::render::explain::Explained;
-    let file = match &args.scene {
-        Some(path) if is_mesh_file(path) => {
-            let model = scene::meshio::load_mesh_file(path)?;
-            scene::mesh_scene(&model, args.view, args.up)
-                .with_context(|| format!("cannot show `{}`", path.display()))?
-        }
-        Some(path) => scene::load_scene_file(path)?,
-        None => scene::parse_scene(
-            scene::BUILTIN_WHITTED,
-            Path::new("scenes/whitted.toml (built in)"),
-        )?,
-    };
+    let (file, _, _) = load_scene(args.scene.as_deref(), args.mesh)?;
     let mut settings = file.settings.clone();
     if let Some(w) = args.width {
         settings.width = w;

@@ -8,11 +8,15 @@
 //! samples are added with [`Progressive`], which is exact, and converted to
 //! 8-bit sRGB as the PNG writer does.
 
-use anyhow::{Context, Result, anyhow};
+use crate::{MeshView, load_scene, parse_integrator};
+use anyhow::{Context, Result, anyhow, bail};
+use clap::Args;
 use glint::math::Vec3;
+use glint::render::ImageFormat;
 use glint::render::{Image, Progressive};
 use glint::scene::{Camera, Scene};
 use glint::settings::{IntegratorKind, RenderSettings};
+use glint::settings::{MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP};
 use std::num::NonZeroU32;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
@@ -396,4 +400,73 @@ pub fn run(scene: Scene, settings: RenderSettings, options: ViewOptions) -> Resu
         Some(e) => Err(e),
         None => Ok(()),
     }
+}
+
+/// What `glint view` takes.
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    /// Scene file, or mesh file (as for `glint render`); the built-in
+    /// Whitted scene if omitted.
+    scene: Option<PathBuf>,
+    /// Window width in pixels (default: the scene's image width).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    width: Option<u32>,
+    /// Window height in pixels.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    height: Option<u32>,
+    /// raycast, whitted or path (default: the scene's).
+    #[arg(long, value_parser = parse_integrator)]
+    integrator: Option<IntegratorKind>,
+    /// Maximum recursion depth.
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(i32).range(-1..=MAX_DEPTH as i64))]
+    max_depth: Option<i32>,
+    /// Render threads (0: all cores).
+    #[arg(long)]
+    threads: Option<u32>,
+    /// Close the window after this many passes (one sample per pixel each);
+    /// for scripts and tests.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=MAX_SPP as i64))]
+    frames: Option<u32>,
+    /// On closing, save what the window shows to this PNG.
+    #[arg(long, value_name = "FILE.png")]
+    screenshot: Option<PathBuf>,
+    #[command(flatten)]
+    mesh: MeshView,
+}
+
+pub fn run_view(args: ViewArgs) -> Result<()> {
+    if let Some(path) = &args.screenshot
+        && ImageFormat::from_path(path) != Some(ImageFormat::Png)
+    {
+        bail!("cannot write `{}`: a screenshot is a .png", path.display());
+    }
+    let (file, _, _) = load_scene(args.scene.as_deref(), args.mesh)?;
+    for w in &file.warnings {
+        eprintln!("warning: {w}");
+    }
+    let mut settings = file.settings;
+    if let Some(w) = args.width {
+        settings.width = w;
+    }
+    if let Some(h) = args.height {
+        settings.height = h;
+    }
+    if let Some(i) = args.integrator {
+        settings.integrator = i;
+    }
+    if let Some(d) = args.max_depth {
+        settings.max_depth = d;
+    }
+    if let Some(t) = args.threads {
+        settings.threads = t as usize;
+    }
+    settings.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
+    run(
+        file.scene,
+        settings,
+        ViewOptions {
+            frames: args.frames,
+            screenshot: args.screenshot,
+        },
+    )
 }
