@@ -29,7 +29,7 @@ pub use parts::{Film, FilmHeader, MergeError, SampleSum};
 pub use sampler::{Pcg32, PixelSampler, PixelSamples};
 pub use stats::{RayCounts, RenderStats, TileCounters};
 
-use crate::math::Color;
+use crate::math::{Color, Ray, Vec3};
 use crate::scene::Scene;
 use crate::settings::RenderSettings;
 use rayon::prelude::*;
@@ -569,21 +569,63 @@ fn render_tile<I: Integrator>(
     let mut counters = Counters::default();
     let (mut bad_samples, mut nan_pixels) = (0, 0);
     let samples = settings.samples();
+    let (width, height) = (settings.width, settings.height);
+    // Camera rays are made in batches (see `Camera::rays`): a row's with one
+    // sample per pixel, else a pixel's samples, up to `RAYS` at a time.
+    const RAYS: usize = 64;
+    const { assert!(TILE_SIZE as usize <= RAYS) };
+    let mut points = [(0.0f32, 0.0f32); RAYS];
+    let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); RAYS];
+    let mut row_samples = [PixelSamples::new(0, 0); TILE_SIZE as usize];
+    let single = samples.count == 1;
+    // One sample per pixel written straight to a film that keeps no sums.
+    let plain = single && accumulate.is_none() && tile.sums.is_empty();
     for (dy, row) in tile.rows.iter_mut().enumerate() {
         let y = tile.y0 + dy as u32;
+        if single {
+            for (dx, (p, s)) in points
+                .iter_mut()
+                .zip(&mut row_samples[..row.len()])
+                .enumerate()
+            {
+                let x = tile.x0 + dx as u32;
+                *s = PixelSamples::new(x, y);
+                let (u, v) = s.offset(samples.start);
+                *p = (x as f32 + u, y as f32 + v);
+            }
+            let n = row.len();
+            scene
+                .camera
+                .rays(&points[..n], width, height, &mut rays[..n]);
+        }
         for (dx, pixel) in row.iter_mut().enumerate() {
             let x = tile.x0 + dx as u32;
             let mut sum = SampleSum::default();
             let mut bad = 0;
-            let mut pixel_samples = PixelSamples::new(x, y);
+            let mut pixel_samples = if single {
+                row_samples[dx]
+            } else {
+                PixelSamples::new(x, y)
+            };
             // The counters before the pixel, for its counting AOVs.
             let before = (!tile.aovs.is_empty()).then_some(counters);
             for index in samples.start as u64..samples.end() {
-                let (u, v) = pixel_samples.offset(index as u32);
-                let ray =
-                    scene
-                        .camera
-                        .ray(x as f32 + u, y as f32 + v, settings.width, settings.height);
+                let k = (index - samples.start as u64) as usize % RAYS;
+                let ray = if single {
+                    rays[dx]
+                } else {
+                    if k == 0 {
+                        let n = (samples.end() - index).min(RAYS as u64) as usize;
+                        for (j, p) in points[..n].iter_mut().enumerate() {
+                            let (u, v) = pixel_samples.offset(index as u32 + j as u32);
+                            *p = (x as f32 + u, y as f32 + v);
+                        }
+                        scene
+                            .camera
+                            .rays(&points[..n], width, height, &mut rays[..n]);
+                    }
+                    rays[k]
+                };
                 counters.rays.camera += 1;
                 let mut sampler = pixel_samples.sampler(index as u32);
                 let mut l = integrator.radiance(scene, &ray, &mut sampler, &mut counters);
@@ -597,10 +639,13 @@ fn render_tile<I: Integrator>(
                 // Guard: no NaN or infinity reaches a pixel; count them
                 // instead. Sums are exact and clamped, so every pixel stays
                 // finite.
-                if l.is_finite() {
-                    sum.add_sample(l);
-                } else {
+                if !l.is_finite() {
                     bad += 1;
+                } else if plain {
+                    // One sample and no sums: its mean, without them.
+                    *pixel = SampleSum::mean_of_one(l);
+                } else {
+                    sum.add_sample(l);
                 }
             }
             bad_samples += bad;
@@ -611,7 +656,9 @@ fn render_tile<I: Integrator>(
                     *pixel = s[dx].mean(total);
                 }
                 (_, s) => {
-                    *pixel = sum.mean(samples.count as u64);
+                    if !plain || bad > 0 {
+                        *pixel = sum.mean(samples.count as u64);
+                    }
                     if let Some(s) = s {
                         s[dx] = sum;
                     }

@@ -58,16 +58,46 @@ impl SampleSum {
     #[inline]
     pub fn mean(&self, count: u64) -> Color {
         // Scaling by a power of two is exact, so multiplying by 2^−48 is
-        // dividing by 2^48; and dividing by 1 changes nothing.
-        let m = |s: u128| {
-            let x = to_f64(s) * (1.0 / SCALE);
-            if count <= 1 {
-                x as f32
+        // dividing by 2^48; and dividing by 1 changes nothing (so it is not
+        // done: the branch is taken once, not per channel).
+        let x = self.0.map(|s| to_f64(s) * (1.0 / SCALE));
+        if count <= 1 {
+            Color::new(x[0] as f32, x[1] as f32, x[2] as f32)
+        } else {
+            let n = count as f64;
+            Color::new((x[0] / n) as f32, (x[1] / n) as f32, (x[2] / n) as f32)
+        }
+    }
+
+    /// What [`SampleSum::add_sample`] of `c` into an empty sum, then
+    /// [`SampleSum::mean`] of 1, gives, without the integers (a render of
+    /// one sample per pixel that keeps no sums): each channel clamped to
+    /// [0, [`MAX_SAMPLE_VALUE`]] (NaN to 0), and below 2^−25 rounded to a
+    /// multiple of 2^−48, halves up (from 2^−25 up every f32 is one).
+    #[inline]
+    pub fn mean_of_one(c: Color) -> Color {
+        const SMALL: f32 = 1.0 / (1u32 << 25) as f32;
+        // All channels at once where none needs rounding: `max` gives its
+        // second operand for NaN and for −0, so NaN and −0 become +0 as in
+        // `quantise`.
+        let v = c.max(Color::ZERO).min(Color::splat(MAX_SAMPLE_VALUE));
+        if (v.cmpge(Color::splat(SMALL)) | v.cmpeq(Color::ZERO)).all() {
+            return v;
+        }
+        let round = |v: f32| {
+            let v = if v > 0.0 {
+                v.min(MAX_SAMPLE_VALUE)
             } else {
-                (x / count as f64) as f32
+                0.0
+            };
+            if v >= SMALL {
+                v
+            } else {
+                // v·2^48 < 2^23: exact, and so are the sum, floor and scaling.
+                ((v as f64 * SCALE + 0.5).floor() * (1.0 / SCALE)) as f32
             }
         };
-        Color::new(m(self.0[0]), m(self.0[1]), m(self.0[2]))
+        Color::new(round(c.x), round(c.y), round(c.z))
     }
 }
 
@@ -87,8 +117,9 @@ fn quantise(v: f32) -> u128 {
     const TWO_52: f64 = (1u64 << 52) as f64;
     const TWO_64: f64 = 18_446_744_073_709_551_616.0;
     if x < TWO_52 {
-        // x + 0.5 is exact here, and truncation rounds it down.
-        (x + 0.5) as u64 as u128
+        // x + 0.5 is exact here, and truncation rounds it down. Through
+        // `i64` (it fits): one instruction, where `u64` takes a branch.
+        (x + 0.5) as i64 as u64 as u128
     } else if x < TWO_64 {
         // From 2^52 up, every f64 is a whole number.
         x as u64 as u128
@@ -104,7 +135,10 @@ fn quantise(v: f32) -> u128 {
 #[inline]
 fn to_f64(s: u128) -> f64 {
     let (hi, lo) = ((s >> 64) as u64, s as u64);
-    if hi == 0 {
+    if s < 1 << 63 {
+        // Through `i64`: one instruction, where `u64` takes a branch.
+        lo as i64 as f64
+    } else if hi == 0 {
         lo as f64
     } else {
         hi as f64 * 18_446_744_073_709_551_616.0 + lo as f64
@@ -443,6 +477,41 @@ mod tests {
             let mut s = SampleSum::default();
             s.add_sample(Color::new(v, v * 0.5, v * 0.25));
             assert_eq!(s.mean(1), Color::new(v, v * 0.5, v * 0.25), "{v}");
+        }
+    }
+
+    #[test]
+    fn the_mean_of_one_sample_is_the_sums_bit_for_bit() {
+        let mut rng = crate::render::Pcg32::new(3, 9);
+        let mut values = vec![
+            0.0f32,
+            -0.0,
+            -1.0,
+            f32::NAN,
+            f32::INFINITY,
+            f32::MAX,
+            MAX_SAMPLE_VALUE,
+            1.0 / (1u32 << 25) as f32,
+            f32::MIN_POSITIVE,
+            1e-45,
+            1.5 / (1u64 << 48) as f32,
+            2.5 / (1u64 << 48) as f32,
+        ];
+        // Every binade that matters, with random mantissas.
+        for e in -60..50 {
+            for _ in 0..40 {
+                values.push((1.0 + rng.next_f32()) * 2f32.powi(e));
+            }
+        }
+        for v in values {
+            let c = Color::new(v, v * 0.75, -v);
+            let mut s = SampleSum::default();
+            s.add_sample(c);
+            assert_eq!(
+                SampleSum::mean_of_one(c).to_array().map(f32::to_bits),
+                s.mean(1).to_array().map(f32::to_bits),
+                "{v:e}"
+            );
         }
     }
 

@@ -332,23 +332,25 @@ impl Scene {
     /// objects front to back and prunes by the closest hit so far.
     #[inline]
     pub fn intersect(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<Hit> {
-        let mut ray = *ray;
-        let mut closest = None;
         if self.linear {
-            for (i, object) in self.objects.iter().enumerate() {
-                if let Some(h) = object.shape.intersect(&ray, counters) {
+            let mut ray = *ray;
+            let mut closest = None;
+            let mut object = 0;
+            for (i, o) in self.objects.iter().enumerate() {
+                if let Some(h) = o.shape.intersect(&ray, counters) {
                     ray.t_max = h.t;
-                    closest = Some(Hit {
-                        t: h.t,
-                        object: i as u32,
-                        shape: h,
-                    });
+                    closest = Some(h);
+                    object = i as u32;
                 }
             }
             counters.intersection_tests += self.objects.len() as u64;
-            return closest;
+            return closest.map(|h| Hit {
+                t: h.t,
+                object,
+                shape: h,
+            });
         }
-        self.intersect_tlas(ray, counters)
+        self.intersect_tlas(*ray, counters)
     }
 
     /// [`Scene::intersect`] through the top-level BVH (many objects).
