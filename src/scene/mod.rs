@@ -24,7 +24,7 @@ pub use material::{Material, MaterialKind};
 pub use mesh_scene::{MeshSceneError, mesh_scene};
 pub use texture::{CheckerMode, Texture};
 
-use crate::accel::{Bvh, TraversalCounters};
+use crate::accel::{Bvh, Tlas, TraversalCounters};
 pub use crate::geometry::TraceCounters;
 use crate::geometry::{Shape, ShapeHit, SurfacePoint};
 use crate::light::LightSet;
@@ -95,10 +95,8 @@ pub struct Scene {
     pub environment: Option<std::sync::Arc<crate::light::EnvMap>>,
     /// Per object: does its material stop shadow rays?
     opaque: Vec<bool>,
-    /// Top-level BVH over the objects with finite bounds.
-    tlas: Bvh,
-    /// Objects with infinite bounds (planes), tested by every ray.
-    unbounded: Vec<u32>,
+    /// The objects' top-level acceleration structure.
+    tlas: Tlas,
     /// Few objects: test them in a plain loop, which beats the traversal's
     /// bookkeeping (by 20% of a Whitted frame with 3 objects).
     linear: bool,
@@ -237,10 +235,6 @@ impl Scene {
             .map(|o| materials[o.material as usize].is_opaque())
             .collect();
         let mut bounds: Vec<Aabb> = objects.iter().map(|o| o.shape.bounds()).collect();
-        let finite = |b: &Aabb| b.min.is_finite() && b.max.is_finite();
-        let unbounded = (0..objects.len() as u32)
-            .filter(|&i| !finite(&bounds[i as usize]))
-            .collect();
         // Merged objects are traced in the merged mesh only (their empty
         // boxes are left out of the top-level BVH; meshes are never
         // unbounded).
@@ -252,8 +246,7 @@ impl Scene {
             }
             Box::new(m)
         });
-        // Infinite boxes are left out of the BVH by its builder.
-        let tlas = Bvh::build(&bounds);
+        let tlas = Tlas::build(&bounds);
         let objects_len = objects.len();
         let emitters = LightSet::build(&objects, &materials, &lights, background, None);
         Ok(Scene {
@@ -267,7 +260,6 @@ impl Scene {
             environment: None,
             opaque,
             tlas,
-            unbounded,
             linear: objects_len <= LINEAR_OBJECTS && merged.is_none(),
             merged,
         })
@@ -302,8 +294,8 @@ impl Scene {
     pub fn geometry_stats(&self) -> GeometryStats {
         let mut seen = std::collections::HashSet::new();
         let mut g = GeometryStats {
-            bvh_nodes: self.tlas.node_count() as u64,
-            bvh_bytes: self.tlas.bytes() as u64,
+            bvh_nodes: self.tlas.bvh().node_count() as u64,
+            bvh_bytes: self.tlas.bvh().bytes() as u64,
             ..GeometryStats::default()
         };
         for o in &self.objects {
@@ -324,7 +316,7 @@ impl Scene {
 
     /// The top-level BVH (over objects with finite bounds).
     pub fn tlas(&self) -> &Bvh {
-        &self.tlas
+        self.tlas.bvh()
     }
 
     /// The closest hit with `t ∈ [ray.t_min, ray.t_max)`: the unbounded
@@ -363,17 +355,7 @@ impl Scene {
             ray.t_max = h.t;
             closest = Some(m.hit(h));
         }
-        for &i in &self.unbounded {
-            if let Some(h) = self.objects[i as usize].shape.intersect(&ray, counters) {
-                ray.t_max = h.t;
-                closest = Some(Hit {
-                    t: h.t,
-                    object: i,
-                    shape: h,
-                });
-            }
-        }
-        let mut tests = self.unbounded.len() as u64;
+        let mut tests = 0;
         let mut top = TraversalCounters::default();
         self.tlas.closest(&ray, &mut top, |i, t_max| {
             tests += 1;
@@ -442,10 +424,7 @@ impl Scene {
         }
         let mut tests = 0;
         let mut top = TraversalCounters::default();
-        let hit = self.unbounded.iter().any(|&i| {
-            tests += 1;
-            self.objects[i as usize].shape.occludes(ray, counters)
-        }) || self.tlas.any(ray, &mut top, |i| {
+        let hit = self.tlas.any(ray, &mut top, |i| {
             tests += 1;
             self.objects[i as usize].shape.occludes(ray, counters)
         });
@@ -489,8 +468,7 @@ impl Scene {
             tests += 1;
             visit(i, counters)
         };
-        let hit = self.unbounded.iter().any(|&i| counted(i, counters))
-            || self.tlas.any(ray, &mut top, |i| counted(i, counters));
+        let hit = self.tlas.any(ray, &mut top, |i| counted(i, counters));
         counters.intersection_tests += tests;
         counters.bvh.nodes_visited += top.nodes_visited;
         hit
