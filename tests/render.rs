@@ -423,3 +423,141 @@ fn invalid_settings_are_errors_not_panics() {
     settings.min_weight = f32::NAN;
     assert!(render(&file.scene, &settings, &|_| {}).is_err());
 }
+
+/// A glass and a diffuse sphere in one corner of the frame, lit, under a
+/// coloured sky (for the path integrator, a constant environment light):
+/// most tiles of the image see only the sky.
+const SPHERES_IN_A_CORNER: &str = r#"
+[camera]
+position = [0, 0, -6]
+look_at = [0, 0, 0]
+fov = 40
+
+[render]
+background = [0.2, 0.3, 0.45]
+
+[materials]
+glass = { type = "dielectric", ior = 1.5 }
+matte = { type = "diffuse", color = [0.7, 0.6, 0.2] }
+
+[[light]]
+type = "point"
+position = [2, 3, -3]
+intensity = 20
+
+[[object]]
+shape = "sphere"
+center = [-1.2, 1.0, 0]
+radius = 0.4
+material = "glass"
+
+[[object]]
+shape = "sphere"
+center = [-1.5, 0.6, 1]
+radius = 0.5
+material = "matte"
+"#;
+
+#[test]
+fn tiles_known_to_miss_render_as_if_traced_bit_for_bit() {
+    use glint::render::{AnyIntegrator, PixelSamples, SampleSum};
+    let file = scene(SPHERES_IN_A_CORNER);
+    let (w, h) = (80, 48);
+    for integrator in [
+        IntegratorKind::Raycast,
+        IntegratorKind::Whitted,
+        IntegratorKind::Path,
+    ] {
+        for spp in [1, 3] {
+            let settings = RenderSettings {
+                width: w,
+                height: h,
+                spp,
+                integrator,
+                ..file.settings.clone()
+            };
+            let (image, stats) = render(&file.scene, &settings, &|_| {}).unwrap();
+            // Every pixel traced one by one, as the renderer would without
+            // culling.
+            let tracer = AnyIntegrator::new(&settings);
+            let mut traced_rays = 0;
+            for y in 0..h {
+                for x in 0..w {
+                    let mut samples = PixelSamples::new(x, y);
+                    let mut sum = SampleSum::default();
+                    let mut counters = Counters::default();
+                    for i in 0..spp {
+                        let (u, v) = samples.offset(i);
+                        let ray = file.scene.camera.ray(x as f32 + u, y as f32 + v, w, h);
+                        let mut sampler = samples.sampler(i);
+                        sum.add_sample(tracer.radiance(
+                            &file.scene,
+                            &ray,
+                            &mut sampler,
+                            &mut counters,
+                        ));
+                    }
+                    traced_rays += counters.trace.intersection_tests;
+                    let expected = sum.mean(spp as u64);
+                    let got = image.pixels[(y * w + x) as usize];
+                    assert_eq!(
+                        got.to_array().map(f32::to_bits),
+                        expected.to_array().map(f32::to_bits),
+                        "{integrator:?} {spp} spp, pixel ({x}, {y}): {got:?} against {expected:?}"
+                    );
+                }
+            }
+            // Tiles were culled: fewer objects tested than tracing every ray.
+            assert!(
+                stats.intersection_tests < traced_rays,
+                "{integrator:?}: {} tests, {traced_rays} when every ray is traced",
+                stats.intersection_tests
+            );
+        }
+    }
+}
+
+#[test]
+fn a_tile_is_culled_only_if_its_rays_miss_everything() {
+    let file = scene(SPHERES_IN_A_CORNER);
+    let s = &file.scene;
+    let (w, h) = (640, 480);
+    let mut rng = glint::render::Pcg32::new(11, 5);
+    let (mut culled, mut kept) = (0, 0);
+    for _ in 0..400 {
+        let (x0, y0) = (rng.next_f32() * w as f32, rng.next_f32() * h as f32);
+        let size = 1.0 + rng.next_f32() * 64.0;
+        let (x1, y1) = (x0 + size, y0 + size * (0.5 + rng.next_f32()));
+        if !s.camera_misses(x0, x1, y0, y1, w, h) {
+            kept += 1;
+            continue;
+        }
+        culled += 1;
+        // Rays through a grid over the rectangle, its edges and corners
+        // included, all miss.
+        for i in 0..=8 {
+            for j in 0..=8 {
+                let x = x0 + (x1 - x0) * i as f32 / 8.0;
+                let y = y0 + (y1 - y0) * j as f32 / 8.0;
+                let ray = s.camera.ray(x, y, w, h);
+                assert!(
+                    s.intersect(&ray, &mut TraceCounters::default()).is_none(),
+                    "({x}, {y}) in [{x0}, {x1}] × [{y0}, {y1}] hits"
+                );
+            }
+        }
+    }
+    assert!(culled > 50 && kept > 50, "{culled} culled, {kept} kept");
+    // A rectangle over the spheres is never culled, and a scene with a
+    // plane (unbounded) never is.
+    let (px, py) = s
+        .camera
+        .project(Vec3::new(-1.2, 1.0, 0.0), w, h)
+        .expect("in front");
+    assert!(!s.camera_misses(px - 1.0, px + 1.0, py - 1.0, py + 1.0, w, h));
+    let wall = scene(GLASS_IN_FRONT_OF_WALL);
+    assert!(!wall.scene.camera_misses(0.0, 8.0, 0.0, 8.0, w, h));
+    // The built-in Whitted scene (a box and two spheres) culls its sky.
+    let whitted = scene(BUILTIN_WHITTED);
+    assert!(whitted.scene.camera_misses(0.0, 8.0, 0.0, 8.0, w, h));
+}

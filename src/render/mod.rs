@@ -580,6 +580,22 @@ fn render_tile<I: Integrator>(
     let single = samples.count == 1;
     // One sample per pixel written straight to a film that keeps no sums.
     let plain = single && accumulate.is_none() && tile.sums.is_empty();
+    // A tile whose camera rays all miss everything is not traced (its
+    // output variables, if any, are gathered the ordinary way).
+    let missed = tile.aovs.is_empty() && {
+        let (x1, y1) = (
+            tile.x0 + tile.rows.first().map_or(0, |r| r.len()) as u32,
+            tile.y0 + tile.rows.len() as u32,
+        );
+        scene.camera_misses(
+            tile.x0 as f32,
+            x1 as f32,
+            tile.y0 as f32,
+            y1 as f32,
+            width,
+            height,
+        )
+    };
     for (dy, row) in tile.rows.iter_mut().enumerate() {
         let y = tile.y0 + dy as u32;
         if single {
@@ -627,8 +643,15 @@ fn render_tile<I: Integrator>(
                     rays[k]
                 };
                 counters.rays.camera += 1;
-                let mut sampler = pixel_samples.sampler(index as u32);
-                let mut l = integrator.radiance(scene, &ray, &mut sampler, &mut counters);
+                let escaped = if missed {
+                    integrator.escaped(scene, &ray)
+                } else {
+                    None
+                };
+                let mut l = escaped.unwrap_or_else(|| {
+                    let mut sampler = pixel_samples.sampler(index as u32);
+                    integrator.radiance(scene, &ray, &mut sampler, &mut counters)
+                });
                 // The explicit, optional clamp (off by default).
                 if let Some(c) = settings.clamp {
                     let m = l.max_element();

@@ -112,6 +112,16 @@ impl Camera {
         ))
     }
 
+    /// The unit direction of the image's right.
+    pub fn right(&self) -> Vec3 {
+        self.right
+    }
+
+    /// `tan(fov_y / 2)`.
+    pub fn tan_half_fov(&self) -> f32 {
+        self.tan_half_fov
+    }
+
     /// The unit view direction.
     pub fn forward(&self) -> Vec3 {
         self.forward

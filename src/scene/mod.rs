@@ -100,6 +100,9 @@ pub struct Scene {
     /// Few objects: test them in a plain loop, which beats the traversal's
     /// bookkeeping (by 20% of a Whitted frame with 3 objects).
     linear: bool,
+    /// A box around everything a ray can hit, enlarged against rounding;
+    /// `None` where some object is unbounded (see [`Scene::camera_misses`]).
+    reach: Option<Aabb>,
     /// Small opaque meshes merged into one, traced with one BVH instead of
     /// one per object (see [`Merged`]); they are left out of `tlas`.
     merged: Option<Box<Merged>>,
@@ -248,6 +251,24 @@ impl Scene {
         });
         let tlas = Tlas::build(&bounds);
         let objects_len = objects.len();
+        let reach = objects
+            .iter()
+            .map(|o| o.shape.bounds())
+            .try_fold(Aabb::EMPTY, |all, b| {
+                (b.min.is_finite() && b.max.is_finite()).then(|| all.union(&b))
+            })
+            .map(|b| {
+                if b.min.cmpgt(b.max).any() {
+                    return b;
+                }
+                // A thousandth of the box's size and of its distance from
+                // the origin: far beyond the f32 rounding of any ray test.
+                let margin = Vec3::splat(
+                    1e-3 * ((b.max - b.min).max_element()
+                        + b.min.abs().max(b.max.abs()).max_element()),
+                );
+                Aabb::new(b.min - margin, b.max + margin)
+            });
         let emitters = LightSet::build(&objects, &materials, &lights, background, None);
         Ok(Scene {
             camera,
@@ -261,6 +282,7 @@ impl Scene {
             opaque,
             tlas,
             linear: objects_len <= LINEAR_OBJECTS && merged.is_none(),
+            reach,
             merged,
         })
     }
@@ -371,6 +393,68 @@ impl Scene {
         counters.intersection_tests += tests;
         counters.bvh.nodes_visited += top.nodes_visited;
         closest
+    }
+
+    /// Whether every camera ray through the film rectangle `[x0, x1] × [y0,
+    /// y1]` (in pixels, of a `width × height` image) certainly misses every
+    /// object, so that a tile of them need not be traced (frustum culling of
+    /// a coherent bundle of rays).
+    ///
+    /// The rays form a pyramid from the eye spanned by the rectangle's
+    /// corner directions (a camera ray's unnormalised direction is affine in
+    /// the film point); the rectangle is widened by a pixel on every side.
+    /// They miss when the box around all objects (enlarged by a thousandth,
+    /// see `reach`) lies wholly outside one of the pyramid's four side
+    /// planes, tested in f64 at its eight corners. False for scenes with
+    /// unbounded objects (planes).
+    pub fn camera_misses(
+        &self,
+        x0: f32,
+        x1: f32,
+        y0: f32,
+        y1: f32,
+        width: u32,
+        height: u32,
+    ) -> bool {
+        let Some(reach) = &self.reach else {
+            return false;
+        };
+        if reach.min.cmpgt(reach.max).any() {
+            // Nothing to hit.
+            return true;
+        }
+        let c = &self.camera;
+        let (f, r, u) = (
+            c.forward().as_dvec3(),
+            c.right().as_dvec3(),
+            c.up().as_dvec3(),
+        );
+        let (w, h) = (width as f64, height as f64);
+        let tan = (c.tan_half_fov() as f64).max(0.0);
+        let aspect = w / h;
+        let dir = |x: f64, y: f64| {
+            let sx = (2.0 * x / w - 1.0) * tan * aspect;
+            let sy = (1.0 - 2.0 * y / h) * tan;
+            f + r * sx + u * sy
+        };
+        let (x0, x1) = (x0 as f64 - 1.0, x1 as f64 + 1.0);
+        let (y0, y1) = (y0 as f64 - 1.0, y1 as f64 + 1.0);
+        let corners = [dir(x0, y0), dir(x1, y0), dir(x1, y1), dir(x0, y1)];
+        let centre = dir((x0 + x1) * 0.5, (y0 + y1) * 0.5);
+        let eye = c.position.as_dvec3();
+        let (lo, hi) = (reach.min.as_dvec3() - eye, reach.max.as_dvec3() - eye);
+        (0..4).any(|k| {
+            let n = corners[k].cross(corners[(k + 1) % 4]);
+            // Inward: towards the rectangle's centre.
+            let n = if n.dot(centre) < 0.0 { -n } else { n };
+            // The box corner farthest along n.
+            let p = glam::DVec3::new(
+                if n.x >= 0.0 { hi.x } else { lo.x },
+                if n.y >= 0.0 { hi.y } else { lo.y },
+                if n.z >= 0.0 { hi.z } else { lo.z },
+            );
+            n.dot(p) < 0.0
+        })
     }
 
     /// The surface at a hit returned by [`Scene::intersect`] for the same ray.

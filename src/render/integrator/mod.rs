@@ -47,6 +47,15 @@ pub trait Integrator: Sync {
         counters: &mut Counters,
     ) -> Color;
 
+    /// What [`Integrator::radiance`] returns for a camera ray that hits
+    /// nothing, for rays the renderer knows to miss (see
+    /// [`Scene::camera_misses`]); `None` (the default) if the integrator
+    /// cannot say, and the ray is then traced.
+    fn escaped(&self, scene: &Scene, ray: &Ray) -> Option<Color> {
+        let _ = (scene, ray);
+        None
+    }
+
     /// [`Integrator::radiance`], telling `tree` about every ray it traces
     /// (`glint explain`). Integrators that cannot tell return the radiance
     /// and leave the tree empty.
@@ -76,9 +85,18 @@ pub trait Tracer: Sync {
         counters: &mut Counters,
         rec: &mut R,
     ) -> Color;
+
+    /// The radiance of a camera ray that hits nothing: what
+    /// [`Tracer::trace`] returns for it, computed by the same code.
+    fn escaped(&self, scene: &Scene, ray: &Ray) -> Color;
 }
 
 impl<T: Tracer> Integrator for T {
+    #[inline]
+    fn escaped(&self, scene: &Scene, ray: &Ray) -> Option<Color> {
+        Some(Tracer::escaped(self, scene, ray))
+    }
+
     #[inline]
     fn radiance(
         &self,
@@ -144,6 +162,15 @@ impl Tracer for AnyIntegrator {
             AnyIntegrator::Raycast(i) => i.trace(scene, ray, sampler, counters, rec),
             AnyIntegrator::Whitted(i) => i.trace(scene, ray, sampler, counters, rec),
             AnyIntegrator::Path(i) => i.trace(scene, ray, sampler, counters, rec),
+        }
+    }
+
+    #[inline]
+    fn escaped(&self, scene: &Scene, ray: &Ray) -> Color {
+        match self {
+            AnyIntegrator::Raycast(i) => Tracer::escaped(i, scene, ray),
+            AnyIntegrator::Whitted(i) => Tracer::escaped(i, scene, ray),
+            AnyIntegrator::Path(i) => Tracer::escaped(i, scene, ray),
         }
     }
 }

@@ -62,6 +62,16 @@ impl Tracer for Path {
     ) -> Color {
         self.trace_path(scene, ray, sampler, counters, rec)
     }
+
+    fn escaped(&self, scene: &Scene, ray: &Ray) -> Color {
+        // The first step of `trace_path` where the ray hits nothing.
+        let mut l = Color::ZERO;
+        let beta = Color::ONE;
+        if let Some((le, w)) = self.environment(scene, ray.d.normalize(), true, 0.0, ray.o) {
+            l += beta * le * w;
+        }
+        l
+    }
 }
 
 impl Path {
@@ -75,6 +85,33 @@ impl Path {
             Sampling::Light => (p_light == 0.0) as u32 as f32,
             Sampling::Bsdf => 1.0,
         }
+    }
+
+    /// The environment's radiance along the unit direction `d` of a ray
+    /// that left the scene, and its weight: 1 after a specular bounce (or
+    /// for the camera ray), else the MIS weight against sampling the
+    /// environment from `prev_p`, where the last bounce sampled `d` with
+    /// density `prev_pdf`. `None` without an environment.
+    #[inline]
+    fn environment(
+        &self,
+        scene: &Scene,
+        d: Vec3,
+        specular: bool,
+        prev_pdf: f32,
+        prev_p: Vec3,
+    ) -> Option<(Color, f32)> {
+        let emitters = &scene.emitters;
+        let env = emitters.environment?;
+        let light = &emitters.lights[env as usize];
+        let le = light.le(Vec3::ZERO, -d);
+        let w = if specular {
+            1.0
+        } else {
+            let p_light = emitters.select.pmf(env as usize) * light.pdf_li(prev_p, d, prev_p);
+            self.bsdf_weight(prev_pdf, p_light)
+        };
+        Some((le, w))
     }
 
     fn trace_path<R: Recorder>(
@@ -113,16 +150,7 @@ impl Path {
             local = Color::ZERO;
             let hit = intersect(scene, &ray, counters, rec);
             let Some(hit) = hit else {
-                if let Some(env) = emitters.environment {
-                    let light = &emitters.lights[env as usize];
-                    let le = light.le(Vec3::ZERO, -ray.d);
-                    let w = if specular {
-                        1.0
-                    } else {
-                        let p_light =
-                            emitters.select.pmf(env as usize) * light.pdf_li(prev_p, ray.d, prev_p);
-                        self.bsdf_weight(prev_pdf, p_light)
-                    };
+                if let Some((le, w)) = self.environment(scene, ray.d, specular, prev_pdf, prev_p) {
                     l += beta * le * w;
                     local = le * w;
                 }

@@ -32,7 +32,7 @@ impl Tracer for Raycast {
         rec.begin(RayKind::Camera, ray, Color::ONE);
         let hit = intersect(scene, ray, counters, rec);
         let Some(hit) = hit else {
-            let background = scene.background_le(ray.d);
+            let background = self.escaped(scene, ray);
             rec.end(background, Color::ONE, background);
             return background;
         };
@@ -51,5 +51,10 @@ impl Tracer for Raycast {
         );
         rec.end(l, Color::ONE, l);
         l
+    }
+
+    #[inline]
+    fn escaped(&self, scene: &Scene, ray: &Ray) -> Color {
+        scene.background_le(ray.d)
     }
 }

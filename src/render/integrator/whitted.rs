@@ -42,6 +42,11 @@ impl Tracer for Whitted {
     ) -> Color {
         self.camera_ray(scene, ray, sampler, counters, rec)
     }
+
+    #[inline]
+    fn escaped(&self, scene: &Scene, ray: &Ray) -> Color {
+        scene.background_le(ray.d)
+    }
 }
 
 /// The secondary rays a camera sample may still spawn.
@@ -110,7 +115,8 @@ impl Whitted {
         rec: &mut R,
     ) -> Color {
         let Some(hit) = intersect(scene, ray, counters, rec) else {
-            let background = scene.background_le(ray.d);
+            // Any ray of the tree that escapes, as a camera ray does.
+            let background = Tracer::escaped(self, scene, ray);
             rec.end(background, Color::ONE, background);
             return background;
         };
