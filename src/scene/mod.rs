@@ -238,24 +238,10 @@ impl Scene {
             .map(|o| materials[o.material as usize].is_opaque())
             .collect();
         let mut bounds: Vec<Aabb> = objects.iter().map(|o| o.shape.bounds()).collect();
-        // Merged objects are traced in the merged mesh only (their empty
-        // boxes are left out of the top-level BVH; meshes are never
-        // unbounded).
-        let merged = Merged::build(&objects, &opaque).map(|(m, taken)| {
-            for (b, t) in bounds.iter_mut().zip(taken) {
-                if t {
-                    *b = Aabb::EMPTY;
-                }
-            }
-            Box::new(m)
-        });
-        let tlas = Tlas::build(&bounds);
-        let objects_len = objects.len();
-        let reach = objects
+        let reach = bounds
             .iter()
-            .map(|o| o.shape.bounds())
             .try_fold(Aabb::EMPTY, |all, b| {
-                (b.min.is_finite() && b.max.is_finite()).then(|| all.union(&b))
+                (b.min.is_finite() && b.max.is_finite()).then(|| all.union(b))
             })
             .map(|b| {
                 if b.min.cmpgt(b.max).any() {
@@ -269,6 +255,19 @@ impl Scene {
                 );
                 Aabb::new(b.min - margin, b.max + margin)
             });
+        // Merged objects are traced in the merged mesh only (their empty
+        // boxes are left out of the top-level BVH; meshes are never
+        // unbounded).
+        let merged = Merged::build(&objects, &opaque).map(|(m, taken)| {
+            for (b, t) in bounds.iter_mut().zip(taken) {
+                if t {
+                    *b = Aabb::EMPTY;
+                }
+            }
+            Box::new(m)
+        });
+        let tlas = Tlas::build(&bounds);
+        let objects_len = objects.len();
         let emitters = LightSet::build(&objects, &materials, &lights, background, None);
         Ok(Scene {
             camera,
