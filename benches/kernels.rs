@@ -143,13 +143,13 @@ fn bench(c: &mut Criterion) {
         } = mesh_scene(&model, view, up).expect("the mesh can be framed");
         assert_eq!(settings.integrator, IntegratorKind::Raycast);
         let settings = RenderSettings { spp: 1, ..settings };
-        let Shape::Mesh(instance) = &scene.objects[0].shape else {
-            unreachable!("a mesh scene's objects are meshes")
-        };
         if scene.objects.len() != 1 {
             eprintln!("note: skipping {name}: it has more than one part");
             continue;
         }
+        let Shape::Mesh(instance) = &scene.objects[0].shape else {
+            unreachable!("a mesh scene's objects are meshes")
+        };
         let (camera, shadow) = render_rays(&scene, &settings);
         let (_, stats) = render(&scene, &settings, &|_| {}).expect("renders");
         // The collected rays are the render's: the same counts.

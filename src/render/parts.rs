@@ -70,10 +70,12 @@ impl SampleSum {
     }
 
     /// What [`SampleSum::add_sample`] of `c` into an empty sum, then
-    /// [`SampleSum::mean`] of 1, gives, without the integers (a render of
-    /// one sample per pixel that keeps no sums): each channel clamped to
-    /// [0, [`MAX_SAMPLE_VALUE`]] (NaN to 0), and below 2^−25 rounded to a
-    /// multiple of 2^−48, halves up (from 2^−25 up every f32 is one).
+    /// [`SampleSum::mean`] of 1, gives (a render of one sample per pixel
+    /// that keeps no sums): each channel clamped to [0,
+    /// [`MAX_SAMPLE_VALUE`]] (NaN to 0), and below 2^−25 rounded to a
+    /// multiple of 2^−48. From 2^−25 up every f32 is such a multiple, so
+    /// where no channel is below it (the usual case) the integers are
+    /// skipped.
     #[inline]
     pub fn mean_of_one(c: Color) -> Color {
         const SMALL: f32 = 1.0 / (1u32 << 25) as f32;
@@ -84,20 +86,10 @@ impl SampleSum {
         if (v.cmpge(Color::splat(SMALL)) | v.cmpeq(Color::ZERO)).all() {
             return v;
         }
-        let round = |v: f32| {
-            let v = if v > 0.0 {
-                v.min(MAX_SAMPLE_VALUE)
-            } else {
-                0.0
-            };
-            if v >= SMALL {
-                v
-            } else {
-                // v·2^48 < 2^23: exact, and so are the sum, floor and scaling.
-                ((v as f64 * SCALE + 0.5).floor() * (1.0 / SCALE)) as f32
-            }
-        };
-        Color::new(round(c.x), round(c.y), round(c.z))
+        // Values below 2^−25 (rare): through the integers.
+        let mut sum = SampleSum::default();
+        sum.add_sample(c);
+        sum.mean(1)
     }
 }
 
