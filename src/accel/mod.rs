@@ -4,7 +4,7 @@
 //! - `bvh`: the binary BVH, its node layout and traversal; `bvh/build.rs`
 //!   its binned SAH build;
 //! - `bvh8`: the 8-wide BVH's node layout; `bvh8/collapse.rs` makes it
-//!   from a binary one, `bvh8/traverse.rs` traverses it (AVX or portable);
+//!   from a binary one, `bvh8/traverse.rs` traverses it (AVX2 or portable);
 //! - `tlas` ([`Tlas`]): the top level over a scene's objects.
 
 mod bvh;
@@ -12,5 +12,5 @@ mod bvh8;
 mod tlas;
 
 pub use bvh::{Bvh, BvhNode, PrimRef, TraversalCounters};
-pub use bvh8::{Bvh8, Bvh8Node, force_portable};
+pub use bvh8::{Bvh8, Bvh8Node, MAX_PRIMITIVES, force_portable};
 pub use tlas::Tlas;

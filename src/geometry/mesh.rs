@@ -3,7 +3,7 @@
 
 use super::triangle::{LANES, TriangleLanes, intersect_mt_lanes, intersect_watertight};
 use super::{ShapeHit, SurfacePoint, TraceCounters};
-use crate::accel::{Bvh, Bvh8, PrimRef};
+use crate::accel::{Bvh, Bvh8, MAX_PRIMITIVES, PrimRef};
 use crate::math::{Aabb, Ray, Transform, Vec3, gamma, normalize_robust, triangle_normal};
 use glam::{Affine3A, Mat3A, Vec2, Vec4};
 use rayon::prelude::*;
@@ -61,6 +61,8 @@ pub enum MeshDataError {
     },
     #[error("vertex {vertex} has a non-finite coordinate")]
     NonFinite { vertex: usize },
+    #[error("{count} triangles; a mesh holds fewer than {limit}")]
+    TooManyTriangles { count: usize, limit: usize },
     #[error("{what} has {found} entries for {count} vertices")]
     AttributeCount {
         what: &'static str,
@@ -79,6 +81,12 @@ impl Mesh {
         normals: Vec<glam::Vec3>,
         uvs: Vec<Vec2>,
     ) -> Result<Mesh, MeshDataError> {
+        if triangles.len() >= MAX_PRIMITIVES {
+            return Err(MeshDataError::TooManyTriangles {
+                count: triangles.len(),
+                limit: MAX_PRIMITIVES,
+            });
+        }
         let count = positions.len();
         if let Some(vertex) = positions.iter().position(|p| !p.is_finite()) {
             return Err(MeshDataError::NonFinite { vertex });
@@ -215,51 +223,12 @@ impl Mesh {
         )
     }
 
-    /// Calls `visit(lanes, own, prims)` for the triangles of `leaves` (a
-    /// node's, as [`Bvh8::closest_leaves`] gives them), four at a time:
-    /// lane `i` holds triangle `prims[i]` where bit `i` of `own` is set.
-    /// Stops when `visit` returns true, and returns whether it did. Small
-    /// meshes batch triangles across leaves from [`Mesh::lanes`]; larger
-    /// ones test leaf by leaf, from [`Mesh::blocks`] where they keep them,
-    /// else gathering vertices.
-    #[inline(always)]
-    fn node_lanes(
-        &self,
-        leaves: &[(u32, u32)],
-        mut visit: impl FnMut(&TriangleLanes, u32, &[u32; LANES]) -> bool,
-    ) -> bool {
-        if !self.lanes.is_empty() {
-            let mut batch = [0u32; LANES];
-            let mut n = 0;
-            let mut flush = |batch: &[u32; LANES], n: usize| {
-                let own = (1u32 << n) - 1;
-                let first = batch[0];
-                if batch[n - 1] == first + n as u32 - 1 {
-                    visit(&self.lanes[first as usize], own, batch)
-                } else {
-                    visit(&self.gather(&batch[..n]), own, batch)
-                }
-            };
-            for &(first, count) in leaves {
-                for prim in first..first + count {
-                    if n == LANES {
-                        if flush(&batch, n) {
-                            return true;
-                        }
-                        n = 0;
-                    }
-                    batch[n] = prim;
-                    n += 1;
-                }
-            }
-            return n > 0 && flush(&batch, n);
-        }
-        leaves
-            .iter()
-            .any(|&(first, count)| self.leaf_lanes(first, count, &mut visit))
-    }
-
-    /// [`Mesh::node_lanes`] for one leaf of a mesh without [`Mesh::lanes`].
+    /// Calls `visit(lanes, own, prims)` for the triangles of the leaf
+    /// `first .. first + count`, four at a time: lane `i` holds triangle
+    /// `prims[i]` where bit `i` of `own` is set. Stops when `visit` returns
+    /// true, and returns whether it did. Small meshes take the lanes from
+    /// [`Mesh::lanes`], larger ones from [`Mesh::blocks`] where they keep
+    /// them, else gather the vertices.
     #[inline(always)]
     fn leaf_lanes(
         &self,
@@ -280,6 +249,15 @@ impl Mesh {
             let base = first + j * LANES as u32;
             std::array::from_fn(|i| base + i as u32)
         };
+        if !self.lanes.is_empty() {
+            for j in 0..blocks {
+                let p = prims(j);
+                if visit(&self.lanes[p[0] as usize], own(j), &p) {
+                    return true;
+                }
+            }
+            return false;
+        }
         if let Some(&start) = self.leaf_block.get(first as usize) {
             let leaf = &self.blocks[start as usize..(start + blocks) as usize];
             for (j, lanes) in (0..).zip(leaf) {
@@ -329,9 +307,9 @@ impl Mesh {
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |leaves, mut t_max| {
+            |first, count, mut t_max| {
                 let mut best = None;
-                self.node_lanes(leaves, |lanes, own, prims| {
+                self.leaf_lanes(first, count, |lanes, own, prims| {
                     let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, t_max);
                     // The nearest lane, the first of equals (spare lanes are
                     // masked off).
@@ -365,8 +343,8 @@ impl Mesh {
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |leaves| {
-                self.node_lanes(leaves, |lanes, own, _| {
+            |first, count| {
+                self.leaf_lanes(first, count, |lanes, own, _| {
                     let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, ray.t_max);
                     h.mask & own != 0
                 })

@@ -1,7 +1,7 @@
 //! Collapsing a binary [`Bvh`] into a [`Bvh8`] (the method is described in
 //! [`super`]).
 
-use super::{Bvh8, Bvh8Node, EMPTY, LEAF, WIDTH};
+use super::{Bvh8, Bvh8Node, WIDTH};
 use crate::accel::bvh::Bvh;
 use crate::math::Vec3;
 use rayon::prelude::*;
@@ -25,7 +25,8 @@ impl Bvh8 {
         if let Some((first, count)) = leaf_range(bvh, 0) {
             // A single leaf: one node with one child.
             let mut n = Bvh8Node::EMPTY_NODE;
-            n.set(0, &root.bounds(), LEAF | first, count);
+            n.set(0, &root.bounds(), first, count);
+            n.order_children();
             return Bvh8 {
                 nodes: vec![n],
                 bounds,
@@ -43,17 +44,20 @@ impl Bvh8 {
             for (k, &Child { node: c, end, leaf }) in children[..len].iter().enumerate() {
                 let child = &bvh.nodes[c];
                 if let Some((first, count)) = leaf {
-                    node.set(k, &child.bounds(), LEAF | first, count);
+                    node.set(k, &child.bounds(), first, count);
                 } else if end - c > split {
                     node.set(k, &child.bounds(), top.len() as u32, 0);
                     todo.push(((c, end), top.len()));
                     top.push(Bvh8Node::EMPTY_NODE);
                 } else {
                     // The index is set once the subtree has its place.
-                    node.set(k, &child.bounds(), EMPTY, 0);
+                    // Its index is filled in below (0, the root, is no
+                    // one's child).
+                    node.set(k, &child.bounds(), 0, 0);
                     tasks.push(((c, end), w, k));
                 }
             }
+            node.order_children();
             top[w] = node;
         }
         let counts: Vec<usize> = tasks
@@ -229,13 +233,14 @@ fn collapse_into(
         for (k, &Child { node: c, end, leaf }) in children[..len].iter().enumerate() {
             let child = &bvh.nodes[c];
             if let Some((first, count)) = leaf {
-                node.set(k, &child.bounds(), LEAF | first, count);
+                node.set(k, &child.bounds(), first, count);
             } else {
                 node.set(k, &child.bounds(), (base + next) as u32, 0);
                 todo.push(((c, end), next));
                 next += 1;
             }
         }
+        node.order_children();
         // Slot `w` was handed out once, from `next`: each is written once.
         out[w].write(node);
     }

@@ -5,51 +5,68 @@
 //! al., "Getting Rid of Packets", 2008; Dammertz et al., "Shallow Bounding
 //! Volume Hierarchies", 2008; Embree's BVH8).
 //!
-//! The eight slab tests run in one 256-bit AVX register where the CPU has AVX
+//! The eight slab tests run in one 256-bit register where the CPU has AVX2
 //! (detected at run time, so the binary runs on any x86-64), and as two 4-lane
 //! halves otherwise (glam's `Vec4`: SSE2 on x86-64, scalar elsewhere). Both
 //! compute exactly the same numbers, `(plane − o)·(1/d)` without fused
-//! multiply-add, so images do not depend on the CPU.
+//! multiply-add, and visit children in the same order, so images do not
+//! depend on the CPU.
 //!
 //! Collapse: a binary node's children are expanded, largest surface area
-//! first, until the node has eight children or only leaves are left.
+//! first, until the node has eight children or only leaves are left. Each
+//! node then gets its children's visiting order for each octant of ray
+//! directions, so that traversal orders them without sorting.
 
 mod collapse;
 mod traverse;
 
 pub use traverse::force_portable;
 
-use super::bvh::MAX_DEPTH;
+use super::bvh::{MAX_DEPTH, MAX_LEAF};
 use crate::math::{Aabb, Vec3};
 
 /// Children per node.
 pub const WIDTH: usize = 8;
 /// A child slot: an interior node, a leaf, or empty.
 const EMPTY: u32 = u32::MAX;
-/// High bit of `child` marks a leaf; the rest is its first primitive.
+/// High bit of `child` marks a leaf (or, with every other bit set, an empty
+/// slot); the next three hold its primitive count less one, the rest its
+/// first primitive.
 const LEAF: u32 = 1 << 31;
+/// Bits of a leaf's first primitive: a tree holds fewer primitives than this.
+const LEAF_FIRST_BITS: u32 = 28;
+/// The limit on primitives that [`LEAF_FIRST_BITS`] sets.
+pub const MAX_PRIMITIVES: usize = 1 << LEAF_FIRST_BITS;
 /// Each visit pushes at most `WIDTH − 1` children, and no path through the
-/// wide tree is longer than one through the binary tree.
-const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
+/// wide tree is longer than one through the binary tree; a visit writes all
+/// `WIDTH` lanes at the top, so the array has `WIDTH` spare slots.
+const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1 + WIDTH;
 
 /// One coordinate of the eight children's boxes, aligned for a 256-bit load.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(32))]
 pub struct Lanes8(pub [f32; WIDTH]);
 
-/// A node with up to eight children (256 bytes, four cache lines).
+/// A node with up to eight children (256 bytes, four cache lines), laid out
+/// as Fuetterling et al. ("Accelerated Single Ray Tracing for Wide Vector
+/// Units", HPG 2017) and tinybvh's `BVH8_CPU` do: the boxes as rows, the
+/// children, and for each of the eight octants of ray directions the order
+/// in which to visit them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 pub struct Bvh8Node {
     /// Rows `min x, min y, min z, max x, max y, max z`, one lane per child:
     /// the near plane of axis `a` for a ray with `d[a] < 0` is row `a + 3`.
     pub planes: [Lanes8; 6],
-    /// Interior child: its node index; leaf: `LEAF | first primitive`; `EMPTY`.
+    /// Interior child: its node index (below `LEAF`); leaf: `LEAF | (count
+    /// − 1) << 28 | first primitive`, at most [`MAX_LEAF`] primitives;
+    /// `EMPTY`.
     pub child: [u32; WIDTH],
-    /// Primitives of a leaf child (at most the binary BVH's largest leaf).
-    pub count: [u8; WIDTH],
-    /// Bit `k` set: child `k` is a leaf.
-    pub leaves: u8,
+    /// Bits `3q .. 3q + 3` of lane `j`: the child visited `j`-th by rays of
+    /// octant `q` (bit `a` of `q` set where `d[a] ≥ 0`), nearest first by the
+    /// distance of its near corner along the octant's diagonal; empty slots
+    /// last.
+    pub order: [u32; WIDTH],
 }
 
 impl Bvh8Node {
@@ -63,22 +80,63 @@ impl Bvh8Node {
             Lanes8([f32::NEG_INFINITY; WIDTH]),
         ],
         child: [EMPTY; WIDTH],
-        count: [0; WIDTH],
-        leaves: 0,
+        order: [0; WIDTH],
     };
 
+    /// Sets child `k`: an interior node (`count` 0; its index may be filled
+    /// in later) or the leaf of primitives `first .. first + count`.
     fn set(&mut self, k: usize, b: &Aabb, child: u32, count: u32) {
         for a in 0..3 {
             self.planes[a].0[k] = b.min[a];
             self.planes[a + 3].0[k] = b.max[a];
         }
-        self.child[k] = child;
-        self.count[k] = u8::try_from(count).expect("leaves hold at most 255 primitives");
-        // Leaves hold at least one primitive; interior children none (the
-        // top of `from_binary` fills in their index later).
-        if count > 0 {
-            self.leaves |= 1 << k;
+        self.child[k] = if count > 0 {
+            assert!(
+                count as usize <= MAX_LEAF && child < 1 << LEAF_FIRST_BITS,
+                "leaf of {count} primitives from {child}"
+            );
+            LEAF | (count - 1) << LEAF_FIRST_BITS | child
+        } else {
+            child
+        };
+    }
+
+    /// Fills in [`Bvh8Node::order`] from the boxes (after every `set`).
+    fn order_children(&mut self) {
+        for q in 0..8 {
+            let diagonal = Vec3::new(
+                if q & 1 != 0 { 1.0 } else { -1.0 },
+                if q & 2 != 0 { 1.0 } else { -1.0 },
+                if q & 4 != 0 { 1.0 } else { -1.0 },
+            );
+            let distance = |k: usize| {
+                if self.child[k] == EMPTY {
+                    return f32::INFINITY;
+                }
+                let b = self.child_bounds(k);
+                let near = Vec3::select(diagonal.cmpgt(Vec3::ZERO), b.min, b.max);
+                diagonal.dot(near)
+            };
+            let mut lanes: [usize; WIDTH] = std::array::from_fn(|k| k);
+            lanes.sort_by(|&i, &j| distance(i).total_cmp(&distance(j)).then(i.cmp(&j)));
+            for (j, &k) in lanes.iter().enumerate() {
+                self.order[j] &= !(7 << (3 * q));
+                self.order[j] |= (k as u32) << (3 * q);
+            }
         }
+    }
+
+    /// Whether child `k` is a leaf.
+    #[inline(always)]
+    pub fn is_leaf(&self, k: usize) -> bool {
+        self.child[k] & LEAF != 0 && self.child[k] != EMPTY
+    }
+
+    /// The primitives `(first, count)` of a leaf child's entry.
+    #[inline(always)]
+    fn leaf_range(child: u32) -> (u32, u32) {
+        let mask = (1 << LEAF_FIRST_BITS) - 1;
+        (child & mask, ((child & !LEAF) >> LEAF_FIRST_BITS) + 1)
     }
 
     pub fn child_bounds(&self, k: usize) -> Aabb {
@@ -110,8 +168,8 @@ impl Bvh8 {
     pub fn leaves(&self) -> impl Iterator<Item = (u32, u32)> + '_ {
         self.nodes.iter().flat_map(|node| {
             (0..WIDTH)
-                .filter(|&k| node.leaves & (1 << k) != 0)
-                .map(|k| (node.child[k] & !LEAF, node.count[k] as u32))
+                .filter(|&k| node.is_leaf(k))
+                .map(|k| Bvh8Node::leaf_range(node.child[k]))
         })
     }
 
@@ -129,13 +187,26 @@ impl Bvh8 {
         };
         while let Some((i, parent)) = stack.pop() {
             let node = self.nodes.get(i).ok_or(format!("node {i} out of range"))?;
+            for q in 0..8 {
+                let lanes: Vec<usize> = node
+                    .order
+                    .iter()
+                    .map(|&o| (o >> (3 * q) & 7) as usize)
+                    .collect();
+                let mut sorted = lanes.clone();
+                sorted.sort();
+                let empties_last = lanes
+                    .iter()
+                    .skip_while(|&&k| node.child[k] != EMPTY)
+                    .all(|&k| node.child[k] == EMPTY);
+                if sorted != (0..WIDTH).collect::<Vec<_>>() || !empties_last {
+                    return Err(format!("order of node {i} for octant {q} is {lanes:?}"));
+                }
+            }
             for k in 0..WIDTH {
                 let child = node.child[k];
                 if child == EMPTY {
                     continue;
-                }
-                if (child & LEAF != 0) != (node.leaves & (1 << k) != 0) {
-                    return Err(format!("leaf mask of node {i} wrong for child {k}"));
                 }
                 let b = node.child_bounds(k);
                 if let Some(p) = parent
@@ -143,9 +214,9 @@ impl Bvh8 {
                 {
                     return Err(format!("child {k} of node {i} outside its parent"));
                 }
-                if child & LEAF != 0 {
-                    let first = (child & !LEAF) as usize;
-                    let end = first + node.count[k] as usize;
+                if node.is_leaf(k) {
+                    let (first, count) = Bvh8Node::leaf_range(child);
+                    let (first, end) = (first as usize, (first + count) as usize);
                     let (Some(leaf_bounds), Some(leaf_seen)) =
                         (bounds.get(first..end), seen.get_mut(first..end))
                     else {

@@ -1,6 +1,13 @@
-//! Traversal of a [`Bvh8`]: the eight slab tests of a node at once (AVX
-//! where the CPU has it, two 4-lane halves otherwise, the same numbers
-//! either way), children taken nearest first from a fixed stack.
+//! Traversal of a [`Bvh8`] after Fuetterling et al. ("Accelerated Single
+//! Ray Tracing for Wide Vector Units", HPG 2017) and tinybvh's `BVH8_CPU`:
+//! the eight slab tests of a node at once, then the children hit pushed onto
+//! one stack of nodes and leaves in the node's precomputed order for the
+//! ray's octant, farthest first, so that the nearest is popped next. Where
+//! the CPU has AVX2 a node is a handful of 256-bit operations with no branch
+//! per child (the push is a permute through a table of the 256 masks and one
+//! store of eight lanes); elsewhere two 4-lane halves and a loop over the
+//! children compute the same numbers and push the same entries in the same
+//! order, so results do not depend on the CPU.
 
 use super::{Bvh8, Bvh8Node, LEAF, STACK, WIDTH};
 use crate::accel::bvh::TraversalCounters;
@@ -10,13 +17,15 @@ use std::mem::MaybeUninit;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// What every lane implementation needs of a ray: origin, finite inverse
-/// direction, the rows of the near and far planes, and `t_min`.
+/// direction, the rows of the near and far planes, `t_min`, and the octant
+/// of the direction as [`Bvh8Node::order`] numbers them.
 struct RaySetup {
     o: Vec3,
     inv: Vec3,
     near: [usize; 3],
     far: [usize; 3],
     t_min: f32,
+    octant: u32,
 }
 
 impl RaySetup {
@@ -31,14 +40,63 @@ impl RaySetup {
             near: std::array::from_fn(|a| a + 3 * negative[a] as usize),
             far: std::array::from_fn(|a| a + 3 * !negative[a] as usize),
             t_min: ray.t_min,
+            octant: (0..3).map(|a| (!negative[a] as u32) << a).sum(),
         }
     }
 }
 
-/// The slab tests of a ray against the eight boxes of a node: fills the entry
-/// distances and returns the mask of children hit within `[t_min, t_max]`.
-trait NodeTest {
-    fn test(&self, n: &Bvh8Node, t_max: f32, t_enter: &mut [f32; WIDTH]) -> u32;
+/// The traversal stack: node or leaf entries with the distances at which
+/// the ray enters their boxes. It is not cleared for every ray.
+struct Stack {
+    entry: Aligned<[MaybeUninit<u32>; STACK]>,
+    dist: Aligned<[MaybeUninit<f32>; STACK]>,
+    len: usize,
+}
+
+/// A stack array on a 32-byte boundary, as the 256-bit stores like.
+#[repr(C, align(32))]
+struct Aligned<T>(T);
+
+impl Stack {
+    #[inline(always)]
+    fn new() -> Self {
+        Stack {
+            entry: Aligned([const { MaybeUninit::uninit() }; STACK]),
+            dist: Aligned([const { MaybeUninit::uninit() }; STACK]),
+            len: 0,
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, entry: u32, dist: f32) {
+        // Indexing checks the bound; `STACK` covers the deepest tree.
+        self.entry.0[self.len].write(entry);
+        self.dist.0[self.len].write(dist);
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, f32)> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: items below `len` were written by `push` or a visit.
+        unsafe {
+            Some((
+                self.entry.0[self.len].assume_init(),
+                self.dist.0[self.len].assume_init(),
+            ))
+        }
+    }
+}
+
+/// A node visit: the slab tests of a ray against the eight boxes of a node;
+/// of the children hit within `[t_min, t_max]`, in the node's order for the
+/// ray's octant, the first is returned and the others are pushed with their
+/// entry distances, last first.
+trait NodeVisit {
+    fn visit(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> Option<u32>;
 }
 
 /// The eight slab tests as two 4-lane halves.
@@ -48,6 +106,7 @@ struct PortableLanes {
     near: [usize; 3],
     far: [usize; 3],
     t_min: Vec4,
+    shift: u32,
 }
 
 impl PortableLanes {
@@ -59,11 +118,13 @@ impl PortableLanes {
             near: r.near,
             far: r.far,
             t_min: Vec4::splat(r.t_min),
+            shift: 3 * r.octant,
         }
     }
-}
 
-impl NodeTest for PortableLanes {
+    /// The mask of children hit within `[t_min, t_max]` and the entry
+    /// distances: `max` of the near planes' `(plane − o)·inv` and `t_min`
+    /// against `min` of the far planes' and `t_max`.
     #[inline(always)]
     fn test(&self, n: &Bvh8Node, t_max: f32, t_enter: &mut [f32; WIDTH]) -> u32 {
         let t_max = Vec4::splat(t_max);
@@ -82,69 +143,156 @@ impl NodeTest for PortableLanes {
     }
 }
 
+impl NodeVisit for PortableLanes {
+    #[inline(always)]
+    fn visit(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> Option<u32> {
+        let mut t = [0f32; WIDTH];
+        let mask = self.test(n, t_max, &mut t);
+        let mut next = None;
+        for j in (0..WIDTH).rev() {
+            let k = (n.order[j] >> self.shift & 7) as usize;
+            if mask & (1 << k) != 0
+                && let Some(previous) = next.replace(k)
+            {
+                stack.push(n.child[previous], t[previous]);
+            }
+        }
+        next.map(|k| n.child[k])
+    }
+}
+
+/// For each mask of the children hit, listed in visiting order (bit `j`:
+/// the `j`-th child in order is hit): the positions of its set bits, last
+/// first, then zeros. A permute by it gathers the children to push,
+/// farthest first.
+const COMPRESS: [[u32; WIDTH]; 256] = {
+    let mut table = [[0u32; WIDTH]; 256];
+    let mut m = 0;
+    while m < 256 {
+        let (mut j, mut n) = (WIDTH, 0);
+        while j > 0 {
+            j -= 1;
+            if m & (1 << j) != 0 {
+                table[m][n] = j as u32;
+                n += 1;
+            }
+        }
+        m += 1;
+    }
+    table
+};
+
 #[cfg(target_arch = "x86_64")]
-mod avx {
-    use super::{Bvh8Node, NodeTest, RaySetup, WIDTH};
+mod avx2 {
+    use super::{Bvh8Node, COMPRESS, NodeVisit, RaySetup, Stack, WIDTH};
     use std::arch::x86_64::*;
 
-    /// The eight slab tests in one 256-bit register each. Only made where the
-    /// CPU has AVX.
-    pub(super) struct AvxLanes {
+    /// The eight slab tests in one 256-bit register each, and the push as
+    /// permutes. Only made where the CPU has AVX2.
+    /// For rays of octant `OCT` (as [`RaySetup::octant`]), whose near and
+    /// far planes are then known when compiling.
+    pub(super) struct Avx2Lanes<const OCT: u32> {
         o: [__m256; 3],
         inv: [__m256; 3],
-        near: [usize; 3],
-        far: [usize; 3],
         t_min: __m256,
     }
 
-    impl AvxLanes {
-        /// The caller makes sure that the CPU has AVX.
-        #[target_feature(enable = "avx")]
+    impl<const OCT: u32> Avx2Lanes<OCT> {
+        /// The row of the near plane of axis `a`: `max` where `d[a] < 0`.
+        const NEAR: [usize; 3] = [
+            if OCT & 1 != 0 { 0 } else { 3 },
+            if OCT & 2 != 0 { 1 } else { 4 },
+            if OCT & 4 != 0 { 2 } else { 5 },
+        ];
+        const FAR: [usize; 3] = [
+            (Self::NEAR[0] + 3) % 6,
+            (Self::NEAR[1] + 3) % 6,
+            (Self::NEAR[2] + 3) % 6,
+        ];
+        const SHIFT: i32 = 3 * OCT as i32;
+
+        /// The caller makes sure that the CPU has AVX2, and that the ray is
+        /// of octant `OCT`.
+        #[target_feature(enable = "avx2")]
         #[inline]
         pub(super) fn new(r: &RaySetup) -> Self {
-            AvxLanes {
+            debug_assert_eq!(r.octant, OCT);
+            Avx2Lanes {
                 o: [0, 1, 2].map(|a| _mm256_set1_ps(r.o[a])),
                 inv: [0, 1, 2].map(|a| _mm256_set1_ps(r.inv[a])),
-                near: r.near,
-                far: r.far,
                 t_min: _mm256_set1_ps(r.t_min),
             }
         }
     }
 
-    impl NodeTest for AvxLanes {
+    impl<const OCT: u32> NodeVisit for Avx2Lanes<OCT> {
         /// As [`super::PortableLanes`]'s, operation for operation (max and
-        /// min return their second operand for NaN in both). Inlined into the
-        /// callers compiled with AVX enabled.
+        /// min return their second operand for NaN in both), and the same
+        /// entries pushed in the same order. Inlined into the callers
+        /// compiled with AVX2 enabled.
         #[inline(always)]
-        fn test(&self, n: &Bvh8Node, t_max: f32, t_enter: &mut [f32; WIDTH]) -> u32 {
-            // SAFETY (all blocks): an `AvxLanes` exists only where the CPU has
-            // AVX; each row is 8 floats aligned to 32 bytes (`Lanes8`), and
-            // `t_enter` holds 8 floats.
+        fn visit(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> Option<u32> {
+            // SAFETY (all blocks): an `Avx2Lanes` exists only where the CPU
+            // has AVX2; each row is 8 floats aligned to 32 bytes (`Lanes8`),
+            // `child` and `order` are 8 u32 each, and the stack has room
+            // for 8 more entries (checked).
             let lanes = |row: usize| unsafe { _mm256_load_ps(n.planes[row].0.as_ptr()) };
             let t = |a: usize, row: usize| unsafe {
                 _mm256_mul_ps(_mm256_sub_ps(lanes(row), self.o[a]), self.inv[a])
             };
-            let (nx, ny, nz) = (t(0, self.near[0]), t(1, self.near[1]), t(2, self.near[2]));
-            let (fx, fy, fz) = (t(0, self.far[0]), t(1, self.far[1]), t(2, self.far[2]));
+            let (near, far) = (Self::NEAR, Self::FAR);
+            let (nx, ny, nz) = (t(0, near[0]), t(1, near[1]), t(2, near[2]));
+            let (fx, fy, fz) = (t(0, far[0]), t(1, far[1]), t(2, far[2]));
             unsafe {
                 let enter = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, self.t_min));
                 let exit = _mm256_min_ps(
                     _mm256_min_ps(fx, fy),
                     _mm256_min_ps(fz, _mm256_set1_ps(t_max)),
                 );
-                _mm256_storeu_ps(t_enter.as_mut_ptr(), enter);
-                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit)) as u32
+                let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit);
+                let mask = _mm256_movemask_ps(hit) as u32;
+                if mask == 0 {
+                    return None;
+                }
+                if mask & (mask - 1) == 0 {
+                    return Some(n.child[mask.trailing_zeros() as usize]);
+                }
+                // Lane j: the child visited j-th; the mask in that order.
+                let order = _mm256_srl_epi32(
+                    _mm256_load_si256(n.order.as_ptr().cast()),
+                    _mm_cvtsi32_si128(Self::SHIFT),
+                );
+                let in_order = _mm256_movemask_ps(_mm256_permutevar8x32_ps(hit, order)) as usize;
+                let push = _mm256_permutevar8x32_epi32(
+                    order,
+                    _mm256_loadu_si256(COMPRESS[in_order].as_ptr().cast()),
+                );
+                let child =
+                    _mm256_permutevar8x32_epi32(_mm256_loadu_si256(n.child.as_ptr().cast()), push);
+                let dist = _mm256_permutevar8x32_ps(enter, push);
+                // All eight lanes are stored; the first `count − 1` are
+                // kept, and the next (the first in order) is returned.
+                let len = stack.len;
+                let count = in_order.count_ones() as usize;
+                let (entries, dists) = (
+                    &mut stack.entry.0[len..len + WIDTH],
+                    &mut stack.dist.0[len..len + WIDTH],
+                );
+                _mm256_storeu_si256(entries.as_mut_ptr().cast(), child);
+                _mm256_storeu_ps(dists.as_mut_ptr().cast(), dist);
+                stack.len = len + count - 1;
+                let k = (n.order[in_order.trailing_zeros() as usize] >> Self::SHIFT) & 7;
+                Some(n.child[k as usize])
             }
         }
     }
 }
 
 /// Set by [`force_portable`]: traverse with the portable lanes even where the
-/// CPU has AVX.
+/// CPU has AVX2.
 static FORCE_PORTABLE: AtomicBool = AtomicBool::new(false);
 
-/// Makes every traversal in the process use the portable (SSE) node test,
+/// Makes every traversal in the process use the portable (SSE) node visit,
 /// or, with `false`, the fastest the CPU has again. The two give
 /// bit-identical results; this exists so that tests (and users chasing a
 /// suspected kernel bug) can run both on one machine.
@@ -152,13 +300,16 @@ pub fn force_portable(portable: bool) {
     FORCE_PORTABLE.store(portable, Ordering::Relaxed);
 }
 
-/// Whether the 256-bit lane test can run here (checked once, then cached by
-/// the standard library) and is not switched off by [`force_portable`].
+/// Whether the 256-bit node visit can run here (checked once, then cached
+/// by the standard library) and is not switched off by [`force_portable`].
 #[inline(always)]
-fn has_avx() -> bool {
+fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        !FORCE_PORTABLE.load(Ordering::Relaxed) && std::arch::is_x86_feature_detected!("avx")
+        !FORCE_PORTABLE.load(Ordering::Relaxed)
+            && std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("popcnt")
+            && std::arch::is_x86_feature_detected!("bmi1")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -166,60 +317,7 @@ fn has_avx() -> bool {
     }
 }
 
-/// A traversal stack that is not cleared for every ray.
-struct Stack<T: Copy> {
-    items: [MaybeUninit<T>; STACK],
-    len: usize,
-}
-
-impl<T: Copy> Stack<T> {
-    #[inline(always)]
-    fn new() -> Self {
-        Stack {
-            items: [const { MaybeUninit::uninit() }; STACK],
-            len: 0,
-        }
-    }
-
-    #[inline(always)]
-    fn push(&mut self, item: T) {
-        // Indexing checks the bound; `STACK` covers the deepest tree.
-        self.items[self.len].write(item);
-        self.len += 1;
-    }
-
-    #[inline(always)]
-    fn pop(&mut self) -> Option<T> {
-        if self.len == 0 {
-            return None;
-        }
-        self.len -= 1;
-        // SAFETY: items below `len` were written by `push`.
-        Some(unsafe { self.items[self.len].assume_init() })
-    }
-}
-
 impl Bvh8 {
-    /// Asks the CPU to start loading node `index` (a hint; no effect where
-    /// there is no prefetch instruction).
-    #[inline(always)]
-    fn prefetch(&self, index: u32) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(node) = self.nodes.get(index as usize) {
-            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            let p = (node as *const Bvh8Node).cast::<i8>();
-            // SAFETY: prefetching is a hint that never faults; the addresses
-            // lie inside the node anyway. SSE is part of x86-64.
-            unsafe {
-                for line in 0..4 {
-                    _mm_prefetch::<_MM_HINT_T0>(p.add(64 * line));
-                }
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = index;
-    }
-
     /// Closest hit, nearer children first, pruning by the closest `t`; as
     /// [`Bvh::closest`](crate::accel::Bvh::closest).
     #[inline]
@@ -233,14 +331,12 @@ impl Bvh8 {
             ray,
             counters,
             #[inline(always)]
-            |leaves, mut t_max| {
+            |first, count, mut t_max| {
                 let mut best = None;
-                for &(first, count) in leaves {
-                    for prim in first..first + count {
-                        if let Some(t) = test(prim, t_max) {
-                            t_max = t;
-                            best = Some((prim, t));
-                        }
+                for prim in first..first + count {
+                    if let Some(t) = test(prim, t_max) {
+                        t_max = t;
+                        best = Some((prim, t));
                     }
                 }
                 best
@@ -248,41 +344,52 @@ impl Bvh8 {
         )
     }
 
-    /// Closest hit, with the leaves of a node whose boxes the ray meets
-    /// before the closest hit so far handed to `test` together, as `(first
-    /// primitive, count)` in child order (for tests that take several
-    /// primitives at once, with SIMD, from data laid out per leaf or per
-    /// primitive): `test(leaves, t_max)` returns the closest hit among
-    /// their primitives before `t_max`, the earliest of equals.
+    /// Closest hit, with each leaf whose box the ray meets before the
+    /// closest hit so far handed to `test` whole, as `(first primitive,
+    /// count, t_max)` (for tests that take several primitives at once, with
+    /// SIMD, from data laid out per leaf): `test` returns the closest hit
+    /// among the leaf's primitives before `t_max`, the earliest of equals.
+    /// Leaves and nodes are taken in the order of [`Bvh8Node::order`].
     #[inline]
     pub fn closest_leaves(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(&[(u32, u32)], f32) -> Option<(u32, f32)>,
+        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         if self.nodes.is_empty() {
             return None;
         }
         let setup = RaySetup::new(ray);
         #[cfg(target_arch = "x86_64")]
-        if has_avx() {
-            // SAFETY: the CPU has AVX.
-            return unsafe { self.closest_avx(&setup, ray.t_max, counters, test) };
+        if has_avx2() {
+            // SAFETY (all): the CPU has AVX2, and the octant is the ray's.
+            return unsafe {
+                match setup.octant {
+                    0 => self.closest_avx2::<0>(&setup, ray.t_max, counters, test),
+                    1 => self.closest_avx2::<1>(&setup, ray.t_max, counters, test),
+                    2 => self.closest_avx2::<2>(&setup, ray.t_max, counters, test),
+                    3 => self.closest_avx2::<3>(&setup, ray.t_max, counters, test),
+                    4 => self.closest_avx2::<4>(&setup, ray.t_max, counters, test),
+                    5 => self.closest_avx2::<5>(&setup, ray.t_max, counters, test),
+                    6 => self.closest_avx2::<6>(&setup, ray.t_max, counters, test),
+                    _ => self.closest_avx2::<7>(&setup, ray.t_max, counters, test),
+                }
+            };
         }
         self.closest_with(ray.t_max, counters, test, &PortableLanes::new(&setup))
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn closest_avx(
+    #[target_feature(enable = "avx2,popcnt,bmi1")]
+    fn closest_avx2<const OCT: u32>(
         &self,
         setup: &RaySetup,
         t_max: f32,
         counters: &mut TraversalCounters,
-        test: impl FnMut(&[(u32, u32)], f32) -> Option<(u32, f32)>,
+        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
-        self.closest_with(t_max, counters, test, &avx::AvxLanes::new(setup))
+        self.closest_with(t_max, counters, test, &avx2::Avx2Lanes::<OCT>::new(setup))
     }
 
     #[inline(always)]
@@ -290,73 +397,31 @@ impl Bvh8 {
         &self,
         mut t_max: f32,
         counters: &mut TraversalCounters,
-        mut test: impl FnMut(&[(u32, u32)], f32) -> Option<(u32, f32)>,
-        lanes: &impl NodeTest,
+        mut test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+        lanes: &impl NodeVisit,
     ) -> Option<(u32, f32)> {
         let mut best = None;
-        // Children not visited yet, with their entry distances.
-        let mut stack = Stack::<(u32, f32)>::new();
-        let mut index = 0u32;
+        let mut stack = Stack::new();
         let (mut visited, mut tests) = (0u64, 0u64);
-        let mut t = [0f32; WIDTH];
+        let mut entry = 0;
         'visit: loop {
-            let node = &self.nodes[index as usize];
-            visited += 1;
-            let hit = lanes.test(node, t_max, &mut t);
-            // Interior children hit, sorted by descending distance: the
-            // nearest is visited next without going through the stack, the
-            // others are pushed farthest first. Their nodes are fetched
-            // while the leaf children are tested, each pruning by the
-            // closest hit so far.
-            let mut inner = [(0u32, 0f32); WIDTH];
-            let mut n_inner = 0;
-            let mut bits = hit & !node.leaves as u32;
-            while bits != 0 {
-                let k = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let child = node.child[k];
-                self.prefetch(child);
-                let mut j = n_inner;
-                while j > 0 && inner[j - 1].1 < t[k] {
-                    inner[j] = inner[j - 1];
-                    j -= 1;
-                }
-                inner[j] = (child, t[k]);
-                n_inner += 1;
-            }
-            let mut bits = hit & node.leaves as u32;
-            let mut leaves = [(0u32, 0u32); WIDTH];
-            let mut n = 0;
-            while bits != 0 {
-                let k = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                if t[k] > t_max {
+            if entry & LEAF == 0 {
+                visited += 1;
+                if let Some(c) = lanes.visit(&self.nodes[entry as usize], t_max, &mut stack) {
+                    entry = c;
                     continue;
                 }
-                let count = node.count[k] as u32;
+            } else {
+                let (first, count) = Bvh8Node::leaf_range(entry);
                 tests += count as u64;
-                leaves[n] = (node.child[k] & !LEAF, count);
-                n += 1;
-            }
-            if n > 0
-                && let Some(h) = test(&leaves[..n], t_max)
-            {
-                (t_max, best) = (h.1, Some(h));
-            }
-            if n_inner > 0 {
-                for &item in &inner[..n_inner - 1] {
-                    stack.push(item);
-                }
-                let (c, tc) = inner[n_inner - 1];
-                if tc <= t_max {
-                    index = c;
-                    continue;
+                if let Some(h) = test(first, count, t_max) {
+                    (t_max, best) = (h.1, Some(h));
                 }
             }
-            // Pop, skipping nodes now beyond the closest hit.
-            while let Some((c, tc)) = stack.pop() {
-                if tc <= t_max {
-                    index = c;
+            // Entries now beyond the closest hit so far are dropped.
+            while let Some((c, dist)) = stack.pop() {
+                if dist <= t_max {
+                    entry = c;
                     continue 'visit;
                 }
             }
@@ -379,46 +444,53 @@ impl Bvh8 {
             ray,
             counters,
             #[inline(always)]
-            |leaves| {
-                leaves
-                    .iter()
-                    .any(|&(first, count)| (first..first + count).any(&mut test))
-            },
+            |first, count| (first..first + count).any(&mut test),
         )
     }
 
-    /// Any hit, with a node's leaves handed to `test` together as by
-    /// [`Bvh8::closest_leaves`] (`test(leaves)`); stops when `test` returns
-    /// true.
+    /// Any hit, with each leaf handed to `test` whole as by
+    /// [`Bvh8::closest_leaves`] (`test(first, count)`); stops when `test`
+    /// returns true.
     #[inline]
     pub fn any_leaves(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(&[(u32, u32)]) -> bool,
+        test: impl FnMut(u32, u32) -> bool,
     ) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
         let setup = RaySetup::new(ray);
         #[cfg(target_arch = "x86_64")]
-        if has_avx() {
-            // SAFETY: the CPU has AVX.
-            return unsafe { self.any_avx(&setup, ray.t_max, counters, test) };
+        if has_avx2() {
+            // SAFETY (all): the CPU has AVX2, and the octant is the ray's.
+            return unsafe {
+                match setup.octant {
+                    0 => self.any_avx2::<0>(&setup, ray.t_max, counters, test),
+                    1 => self.any_avx2::<1>(&setup, ray.t_max, counters, test),
+                    2 => self.any_avx2::<2>(&setup, ray.t_max, counters, test),
+                    3 => self.any_avx2::<3>(&setup, ray.t_max, counters, test),
+                    4 => self.any_avx2::<4>(&setup, ray.t_max, counters, test),
+                    5 => self.any_avx2::<5>(&setup, ray.t_max, counters, test),
+                    6 => self.any_avx2::<6>(&setup, ray.t_max, counters, test),
+                    _ => self.any_avx2::<7>(&setup, ray.t_max, counters, test),
+                }
+            };
         }
         self.any_with(ray.t_max, counters, test, &PortableLanes::new(&setup))
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn any_avx(
+    #[target_feature(enable = "avx2,popcnt,bmi1")]
+    fn any_avx2<const OCT: u32>(
         &self,
         setup: &RaySetup,
         t_max: f32,
         counters: &mut TraversalCounters,
-        test: impl FnMut(&[(u32, u32)]) -> bool,
+        test: impl FnMut(u32, u32) -> bool,
     ) -> bool {
-        self.any_with(t_max, counters, test, &avx::AvxLanes::new(setup))
+        self.any_with(t_max, counters, test, &avx2::Avx2Lanes::<OCT>::new(setup))
     }
 
     #[inline(always)]
@@ -426,52 +498,32 @@ impl Bvh8 {
         &self,
         t_max: f32,
         counters: &mut TraversalCounters,
-        mut test: impl FnMut(&[(u32, u32)]) -> bool,
-        lanes: &impl NodeTest,
+        mut test: impl FnMut(u32, u32) -> bool,
+        lanes: &impl NodeVisit,
     ) -> bool {
-        let mut stack = Stack::<u32>::new();
-        let mut index = 0u32;
+        let mut stack = Stack::new();
         let (mut visited, mut tests) = (0u64, 0u64);
         let mut found = false;
-        let mut t = [0f32; WIDTH];
+        let mut entry = 0;
         loop {
-            let node = &self.nodes[index as usize];
-            visited += 1;
-            let hit = lanes.test(node, t_max, &mut t);
-            // Interior children hit: the last is visited next without going
-            // through the stack, the others are pushed; their nodes are
-            // fetched while the leaf children are tested.
-            let mut next = None;
-            let mut bits = hit & !node.leaves as u32;
-            while bits != 0 {
-                let k = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let child = node.child[k];
-                self.prefetch(child);
-                if let Some(previous) = next {
-                    stack.push(previous);
+            if entry & LEAF == 0 {
+                visited += 1;
+                if let Some(c) = lanes.visit(&self.nodes[entry as usize], t_max, &mut stack) {
+                    entry = c;
+                    continue;
                 }
-                next = Some(child);
-            }
-            let mut bits = hit & node.leaves as u32;
-            let mut leaves = [(0u32, 0u32); WIDTH];
-            let mut n = 0;
-            while bits != 0 {
-                let k = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let count = node.count[k] as u32;
+            } else {
+                let (first, count) = Bvh8Node::leaf_range(entry);
                 tests += count as u64;
-                leaves[n] = (node.child[k] & !LEAF, count);
-                n += 1;
+                if test(first, count) {
+                    found = true;
+                    break;
+                }
             }
-            if n > 0 && test(&leaves[..n]) {
-                found = true;
-                break;
-            }
-            index = match next.or_else(|| stack.pop()) {
-                Some(c) => c,
+            match stack.pop() {
+                Some((c, _)) => entry = c,
                 None => break,
-            };
+            }
         }
         counters.nodes_visited += visited;
         counters.primitive_tests += tests;
@@ -534,29 +586,17 @@ mod tests {
                 wide.any(&ray, &mut counters, |p| t_of(p).is_some()),
                 brute.is_some()
             );
-            // The path taken where the CPU lacks AVX.
+            // The path taken where the CPU lacks AVX2.
             let portable = PortableLanes::new(&RaySetup::new(&ray));
-            let nearest = |leaves: &[(u32, u32)], t_max: f32| {
-                assert!(!leaves.is_empty() && leaves.len() <= WIDTH);
-                assert!(
-                    leaves
-                        .iter()
-                        .all(|l| l.1 >= 1 && l.1 as usize <= crate::accel::bvh::MAX_LEAF)
-                );
-                leaves
-                    .iter()
-                    .flat_map(|&(first, count)| first..first + count)
+            let nearest = |first: u32, count: u32, t_max: f32| {
+                assert!(count >= 1 && count as usize <= crate::accel::bvh::MAX_LEAF);
+                (first..first + count)
                     .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
                     .min_by(|x, y| x.1.total_cmp(&y.1))
             };
             let got = wide.closest_with(ray.t_max, &mut counters, nearest, &portable);
             assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
-            let any = |leaves: &[(u32, u32)]| {
-                leaves
-                    .iter()
-                    .flat_map(|&(first, count)| first..first + count)
-                    .any(|p| t_of(p).is_some())
-            };
+            let any = |first: u32, count: u32| (first..first + count).any(|p| t_of(p).is_some());
             assert_eq!(
                 wide.any_with(ray.t_max, &mut counters, any, &portable),
                 brute.is_some()
@@ -568,13 +608,49 @@ mod tests {
         }
     }
 
+    /// One node visit through the AVX2 lanes of the ray's octant: the
+    /// child returned, and the stack's entries and distances as bits.
+    #[cfg(target_arch = "x86_64")]
+    fn visit_avx2(setup: &RaySetup, node: &Bvh8Node, t_max: f32) -> (Option<u32>, Vec<(u32, u32)>) {
+        fn run<const OCT: u32>(
+            setup: &RaySetup,
+            node: &Bvh8Node,
+            t_max: f32,
+            stack: &mut Stack,
+        ) -> Option<u32> {
+            // SAFETY: called only where the CPU has AVX2.
+            unsafe { avx2::Avx2Lanes::<OCT>::new(setup) }.visit(node, t_max, stack)
+        }
+        let mut stack = Stack::new();
+        let next = match setup.octant {
+            0 => run::<0>(setup, node, t_max, &mut stack),
+            1 => run::<1>(setup, node, t_max, &mut stack),
+            2 => run::<2>(setup, node, t_max, &mut stack),
+            3 => run::<3>(setup, node, t_max, &mut stack),
+            4 => run::<4>(setup, node, t_max, &mut stack),
+            5 => run::<5>(setup, node, t_max, &mut stack),
+            6 => run::<6>(setup, node, t_max, &mut stack),
+            _ => run::<7>(setup, node, t_max, &mut stack),
+        };
+        (next, drain(&mut stack))
+    }
+
+    fn drain(stack: &mut Stack) -> Vec<(u32, u32)> {
+        let mut items = Vec::new();
+        while let Some((c, d)) = stack.pop() {
+            items.push((c, d.to_bits()));
+        }
+        items
+    }
+
     #[test]
-    fn avx_and_portable_lanes_agree_bit_for_bit() {
+    fn avx2_and_portable_visits_agree_bit_for_bit() {
         let b = random_boxes(5000, 4);
         let bvh = Bvh::build(&b);
         let wide = Bvh8::from_binary(&bvh);
         let mut rng = Pcg32::new(5, 3);
         let mut compared = 0;
+        let mut pushed = 0;
         for i in 0..20_000 {
             let o =
                 Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - Vec3::splat(2.0);
@@ -591,35 +667,112 @@ mod tests {
             for node in wide.nodes.iter().step_by(17) {
                 let mut t_p = [0f32; WIDTH];
                 let m_p = portable.test(node, ray.t_max, &mut t_p);
+                let mut stack = Stack::new();
+                let next_p = portable.visit(node, ray.t_max, &mut stack);
+                let stack_p = drain(&mut stack);
+                pushed += stack_p.len();
                 #[cfg(target_arch = "x86_64")]
-                if has_avx() {
-                    let mut t_a = [0f32; WIDTH];
-                    // SAFETY: the CPU has AVX.
-                    let m_a = unsafe { avx::AvxLanes::new(&setup) }.test(node, ray.t_max, &mut t_a);
-                    assert_eq!(m_a, m_p);
-                    for k in 0..WIDTH {
-                        if m_p & (1 << k) != 0 {
-                            assert_eq!(t_a[k].to_bits(), t_p[k].to_bits());
-                        }
-                    }
+                if has_avx2() {
+                    assert_eq!(
+                        visit_avx2(&setup, node, ray.t_max),
+                        (next_p, stack_p.clone())
+                    );
                     compared += 1;
                 }
-                // The mask against the scalar slab test of each child.
+                // The mask against the scalar slab test of each child, and
+                // the children taken: those hit, in the node's order.
+                let mut hit = Vec::new();
                 for k in 0..WIDTH {
                     if node.child[k] == EMPTY {
                         assert_eq!(m_p & (1 << k), 0);
                         continue;
                     }
-                    let hit = node
+                    let slab = node
                         .child_bounds(k)
                         .slab(ray.o, ray.inv_d())
                         .is_some_and(|h| h.t_enter.max(ray.t_min) <= h.t_exit.min(ray.t_max));
-                    assert_eq!(m_p & (1 << k) != 0, hit, "child {k}");
+                    assert_eq!(m_p & (1 << k) != 0, slab, "child {k}");
+                    if slab {
+                        hit.push(k);
+                    }
+                }
+                let rank = |k: usize| {
+                    (0..WIDTH)
+                        .position(|j| (node.order[j] >> (3 * setup.octant) & 7) as usize == k)
+                        .unwrap()
+                };
+                hit.sort_by_key(|&k| rank(k));
+                let want: Vec<u32> = hit.iter().map(|&k| node.child[k]).collect();
+                let mut got: Vec<u32> = next_p.into_iter().collect();
+                got.extend(stack_p.iter().map(|e| e.0));
+                assert_eq!(got, want);
+                for &(c, d) in &stack_p {
+                    let k = (0..WIDTH).find(|&k| node.child[k] == c).unwrap();
+                    assert_eq!(d, t_p[k].to_bits());
                 }
             }
         }
-        if has_avx() {
+        assert!(pushed > 1000, "visits with several children hit: {pushed}");
+        if has_avx2() {
             assert!(compared > 0);
         }
+    }
+
+    #[test]
+    fn whole_traversals_agree_with_and_without_avx2() {
+        let b = random_boxes(20_000, 8);
+        let bvh = Bvh::build(&b);
+        let wide = Bvh8::from_binary(&bvh);
+        let leaf_boxes: Vec<Aabb> = bvh.indices.iter().map(|&i| b[i as usize]).collect();
+        let mut rng = Pcg32::new(12, 4);
+        let mut results = [Vec::new(), Vec::new()];
+        for (pass, out) in results.iter_mut().enumerate() {
+            let setups: Vec<Ray> = (0..3000)
+                .map(|_| {
+                    let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0
+                        - Vec3::splat(2.0);
+                    let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())
+                        - Vec3::splat(0.5);
+                    Ray::new(o, d)
+                })
+                .collect();
+            rng = Pcg32::new(12, 4);
+            for ray in setups {
+                let inv = ray.inv_d();
+                let t_of = |p: u32| {
+                    leaf_boxes[p as usize]
+                        .slab(ray.o, inv)
+                        .map(|h| h.t_enter.max(0.0))
+                };
+                let mut c = TraversalCounters::default();
+                let mut order = Vec::new();
+                let hit = if pass == 0 {
+                    wide.closest_leaves(&ray, &mut c, |first, count, t_max| {
+                        order.push(first);
+                        (first..first + count)
+                            .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
+                            .min_by(|x, y| x.1.total_cmp(&y.1))
+                    })
+                } else {
+                    let mut c2 = TraversalCounters::default();
+                    let portable = PortableLanes::new(&RaySetup::new(&ray));
+                    let r = wide.closest_with(
+                        ray.t_max,
+                        &mut c2,
+                        |first, count, t_max| {
+                            order.push(first);
+                            (first..first + count)
+                                .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
+                                .min_by(|x, y| x.1.total_cmp(&y.1))
+                        },
+                        &portable,
+                    );
+                    c = c2;
+                    r
+                };
+                out.push((hit.map(|h| (h.0, h.1.to_bits())), order, c.nodes_visited));
+            }
+        }
+        assert_eq!(results[0], results[1]);
     }
 }
