@@ -94,9 +94,15 @@ impl Stack {
 /// A node visit: the slab tests of a ray against the eight boxes of a node;
 /// of the children hit within `[t_min, t_max]`, in the node's order for the
 /// ray's octant, the first is returned and the others are pushed with their
-/// entry distances, last first.
+/// entry distances, last first. With `LEAVES_APART`, the leaves hit are left
+/// out of that and returned as a mask of lanes instead (else the mask is 0).
 trait NodeVisit {
-    fn visit(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> Option<u32>;
+    fn visit<const LEAVES_APART: bool>(
+        &self,
+        n: &Bvh8Node,
+        t_max: f32,
+        stack: &mut Stack,
+    ) -> (Option<u32>, u32);
 }
 
 /// The eight slab tests as two 4-lane halves.
@@ -145,9 +151,21 @@ impl PortableLanes {
 
 impl NodeVisit for PortableLanes {
     #[inline(always)]
-    fn visit(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> Option<u32> {
+    fn visit<const LEAVES_APART: bool>(
+        &self,
+        n: &Bvh8Node,
+        t_max: f32,
+        stack: &mut Stack,
+    ) -> (Option<u32>, u32) {
         let mut t = [0f32; WIDTH];
-        let mask = self.test(n, t_max, &mut t);
+        let mut mask = self.test(n, t_max, &mut t);
+        let mut leaves = 0;
+        if LEAVES_APART {
+            // EMPTY has the high bit too, but is never hit.
+            let leaf = (0..WIDTH).fold(0, |m, k| m | (n.child[k] >> 31) << k);
+            leaves = mask & leaf;
+            mask &= !leaf;
+        }
         let mut next = None;
         for j in (0..WIDTH).rev() {
             let k = (n.order[j] >> self.shift & 7) as usize;
@@ -157,7 +175,7 @@ impl NodeVisit for PortableLanes {
                 stack.push(n.child[previous], t[previous]);
             }
         }
-        next.map(|k| n.child[k])
+        (next.map(|k| n.child[k]), leaves)
     }
 }
 
@@ -231,7 +249,12 @@ mod avx2 {
         /// entries pushed in the same order. Inlined into the callers
         /// compiled with AVX2 enabled.
         #[inline(always)]
-        fn visit(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> Option<u32> {
+        fn visit<const LEAVES_APART: bool>(
+            &self,
+            n: &Bvh8Node,
+            t_max: f32,
+            stack: &mut Stack,
+        ) -> (Option<u32>, u32) {
             // SAFETY (all blocks): an `Avx2Lanes` exists only where the CPU
             // has AVX2; each row is 8 floats aligned to 32 bytes (`Lanes8`),
             // `child` and `order` are 8 u32 each, and the stack has room
@@ -249,13 +272,20 @@ mod avx2 {
                     _mm256_min_ps(fx, fy),
                     _mm256_min_ps(fz, _mm256_set1_ps(t_max)),
                 );
-                let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit);
+                let mut hit = _mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit);
+                let mut leaves = 0;
+                if LEAVES_APART {
+                    // The sign bit marks leaves (and EMPTY, never hit).
+                    let child = _mm256_castsi256_ps(_mm256_loadu_si256(n.child.as_ptr().cast()));
+                    leaves = _mm256_movemask_ps(_mm256_and_ps(hit, child)) as u32;
+                    hit = _mm256_andnot_ps(child, hit);
+                }
                 let mask = _mm256_movemask_ps(hit) as u32;
                 if mask == 0 {
-                    return None;
+                    return (None, leaves);
                 }
                 if mask & (mask - 1) == 0 {
-                    return Some(n.child[mask.trailing_zeros() as usize]);
+                    return (Some(n.child[mask.trailing_zeros() as usize]), leaves);
                 }
                 // Lane j: the child visited j-th; the mask in that order.
                 let order = _mm256_srl_epi32(
@@ -282,7 +312,7 @@ mod avx2 {
                 _mm256_storeu_ps(dists.as_mut_ptr().cast(), dist);
                 stack.len = len + count - 1;
                 let k = (n.order[in_order.trailing_zeros() as usize] >> Self::SHIFT) & 7;
-                Some(n.child[k as usize])
+                (Some(n.child[k as usize]), leaves)
             }
         }
     }
@@ -407,7 +437,8 @@ impl Bvh8 {
         'visit: loop {
             if entry & LEAF == 0 {
                 visited += 1;
-                if let Some(c) = lanes.visit(&self.nodes[entry as usize], t_max, &mut stack) {
+                let node = &self.nodes[entry as usize];
+                if let (Some(c), _) = lanes.visit::<false>(node, t_max, &mut stack) {
                     entry = c;
                     continue;
                 }
@@ -504,24 +535,25 @@ impl Bvh8 {
         let mut stack = Stack::new();
         let (mut visited, mut tests) = (0u64, 0u64);
         let mut found = false;
+        // Only nodes go through the stack: a node's leaves are tested when
+        // it is visited, in lane order, which ends occluded rays sooner.
         let mut entry = 0;
-        loop {
-            if entry & LEAF == 0 {
-                visited += 1;
-                if let Some(c) = lanes.visit(&self.nodes[entry as usize], t_max, &mut stack) {
-                    entry = c;
-                    continue;
-                }
-            } else {
-                let (first, count) = Bvh8Node::leaf_range(entry);
+        'visit: loop {
+            visited += 1;
+            let node = &self.nodes[entry as usize];
+            let (next, mut leaves) = lanes.visit::<true>(node, t_max, &mut stack);
+            while leaves != 0 {
+                let k = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let (first, count) = Bvh8Node::leaf_range(node.child[k]);
                 tests += count as u64;
                 if test(first, count) {
                     found = true;
-                    break;
+                    break 'visit;
                 }
             }
-            match stack.pop() {
-                Some((c, _)) => entry = c,
+            match next.or_else(|| stack.pop().map(|e| e.0)) {
+                Some(c) => entry = c,
                 None => break,
             }
         }
@@ -609,30 +641,35 @@ mod tests {
     }
 
     /// One node visit through the AVX2 lanes of the ray's octant: the
-    /// child returned, and the stack's entries and distances as bits.
+    /// child returned, the leaves set apart, and the stack's entries and
+    /// distances as bits.
     #[cfg(target_arch = "x86_64")]
-    fn visit_avx2(setup: &RaySetup, node: &Bvh8Node, t_max: f32) -> (Option<u32>, Vec<(u32, u32)>) {
-        fn run<const OCT: u32>(
+    fn visit_avx2<const L: bool>(
+        setup: &RaySetup,
+        node: &Bvh8Node,
+        t_max: f32,
+    ) -> (Option<u32>, u32, Vec<(u32, u32)>) {
+        fn run<const OCT: u32, const L: bool>(
             setup: &RaySetup,
             node: &Bvh8Node,
             t_max: f32,
             stack: &mut Stack,
-        ) -> Option<u32> {
+        ) -> (Option<u32>, u32) {
             // SAFETY: called only where the CPU has AVX2.
-            unsafe { avx2::Avx2Lanes::<OCT>::new(setup) }.visit(node, t_max, stack)
+            unsafe { avx2::Avx2Lanes::<OCT>::new(setup) }.visit::<L>(node, t_max, stack)
         }
         let mut stack = Stack::new();
-        let next = match setup.octant {
-            0 => run::<0>(setup, node, t_max, &mut stack),
-            1 => run::<1>(setup, node, t_max, &mut stack),
-            2 => run::<2>(setup, node, t_max, &mut stack),
-            3 => run::<3>(setup, node, t_max, &mut stack),
-            4 => run::<4>(setup, node, t_max, &mut stack),
-            5 => run::<5>(setup, node, t_max, &mut stack),
-            6 => run::<6>(setup, node, t_max, &mut stack),
-            _ => run::<7>(setup, node, t_max, &mut stack),
+        let (next, leaves) = match setup.octant {
+            0 => run::<0, L>(setup, node, t_max, &mut stack),
+            1 => run::<1, L>(setup, node, t_max, &mut stack),
+            2 => run::<2, L>(setup, node, t_max, &mut stack),
+            3 => run::<3, L>(setup, node, t_max, &mut stack),
+            4 => run::<4, L>(setup, node, t_max, &mut stack),
+            5 => run::<5, L>(setup, node, t_max, &mut stack),
+            6 => run::<6, L>(setup, node, t_max, &mut stack),
+            _ => run::<7, L>(setup, node, t_max, &mut stack),
         };
-        (next, drain(&mut stack))
+        (next, leaves, drain(&mut stack))
     }
 
     fn drain(stack: &mut Stack) -> Vec<(u32, u32)> {
@@ -668,17 +705,40 @@ mod tests {
                 let mut t_p = [0f32; WIDTH];
                 let m_p = portable.test(node, ray.t_max, &mut t_p);
                 let mut stack = Stack::new();
-                let next_p = portable.visit(node, ray.t_max, &mut stack);
+                let (next_p, no_leaves) = portable.visit::<false>(node, ray.t_max, &mut stack);
+                assert_eq!(no_leaves, 0);
                 let stack_p = drain(&mut stack);
                 pushed += stack_p.len();
+                let (next_l, leaves_l) = portable.visit::<true>(node, ray.t_max, &mut stack);
+                let stack_l = drain(&mut stack);
                 #[cfg(target_arch = "x86_64")]
                 if has_avx2() {
                     assert_eq!(
-                        visit_avx2(&setup, node, ray.t_max),
-                        (next_p, stack_p.clone())
+                        visit_avx2::<false>(&setup, node, ray.t_max),
+                        (next_p, 0, stack_p.clone())
+                    );
+                    assert_eq!(
+                        visit_avx2::<true>(&setup, node, ray.t_max),
+                        (next_l, leaves_l, stack_l.clone())
                     );
                     compared += 1;
                 }
+                // Leaves apart: the same children, less the leaves, which
+                // the mask names.
+                let is_leaf = |c: u32| c & LEAF != 0;
+                let mut all: Vec<u32> = next_p.into_iter().collect();
+                all.extend(stack_p.iter().map(|e| e.0));
+                let mut inner: Vec<u32> = next_l.into_iter().collect();
+                inner.extend(stack_l.iter().map(|e| e.0));
+                let all_inner: Vec<u32> = all.iter().copied().filter(|&c| !is_leaf(c)).collect();
+                assert_eq!(inner, all_inner);
+                let named: Vec<u32> = (0..WIDTH)
+                    .filter(|&k| leaves_l & (1 << k) != 0)
+                    .map(|k| node.child[k])
+                    .collect();
+                let mut apart: Vec<u32> = all.iter().copied().filter(|&c| is_leaf(c)).collect();
+                apart.sort_by_key(|&c| (0..WIDTH).position(|k| node.child[k] == c));
+                assert_eq!(named, apart);
                 // The mask against the scalar slab test of each child, and
                 // the children taken: those hit, in the node's order.
                 let mut hit = Vec::new();
