@@ -109,16 +109,16 @@ impl Bvh8Node {
                 if q & 2 != 0 { 1.0 } else { -1.0 },
                 if q & 4 != 0 { 1.0 } else { -1.0 },
             );
-            let distance = |k: usize| {
+            let distance: [f32; WIDTH] = std::array::from_fn(|k| {
                 if self.child[k] == EMPTY {
                     return f32::INFINITY;
                 }
                 let b = self.child_bounds(k);
                 let near = Vec3::select(diagonal.cmpgt(Vec3::ZERO), b.min, b.max);
                 diagonal.dot(near)
-            };
+            });
             let mut lanes: [usize; WIDTH] = std::array::from_fn(|k| k);
-            lanes.sort_by(|&i, &j| distance(i).total_cmp(&distance(j)).then(i.cmp(&j)));
+            lanes.sort_by(|&i, &j| distance[i].total_cmp(&distance[j]).then(i.cmp(&j)));
             for (j, &k) in lanes.iter().enumerate() {
                 self.order[j] &= !(7 << (3 * q));
                 self.order[j] |= (k as u32) << (3 * q);
