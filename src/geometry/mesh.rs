@@ -33,9 +33,8 @@ pub struct Mesh {
     leaf_block: Vec<u32>,
     /// For meshes of at most [`SMALL_MESH_TRIANGLES`] triangles, instead
     /// of blocks: entry `k` holds triangles `k .. k + 4` (the last ones
-    /// repeat triangle `k`), so that the triangles of a node's leaves are
-    /// tested four at a time across leaves (small meshes have small leaves,
-    /// such as the two triangles of a wall).
+    /// repeat triangle `k`), so that a leaf starting at any triangle reads
+    /// its lanes directly, without the lookup in [`Mesh::leaf_block`].
     lanes: Vec<TriangleLanes>,
     /// For the same small meshes: each triangle's unit normal, computed once.
     face_normals: Vec<Vec3>,

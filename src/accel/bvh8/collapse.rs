@@ -50,9 +50,8 @@ impl Bvh8 {
                     todo.push(((c, end), top.len()));
                     top.push(Bvh8Node::EMPTY_NODE);
                 } else {
-                    // The index is set once the subtree has its place.
-                    // Its index is filled in below (0, the root, is no
-                    // one's child).
+                    // The index is set once the subtree has its place (0,
+                    // the root, is no one's child, and not an empty slot).
                     node.set(k, &child.bounds(), 0, 0);
                     tasks.push(((c, end), w, k));
                 }

@@ -91,8 +91,10 @@ impl Bvh8Node {
             self.planes[a + 3].0[k] = b.max[a];
         }
         self.child[k] = if count > 0 {
+            // Then the word is never EMPTY, which would take count 8 and
+            // first 2^28 − 1.
             assert!(
-                count as usize <= MAX_LEAF && child < 1 << LEAF_FIRST_BITS,
+                count as usize <= MAX_LEAF && child + count < 1 << LEAF_FIRST_BITS,
                 "leaf of {count} primitives from {child}"
             );
             LEAF | (count - 1) << LEAF_FIRST_BITS | child
