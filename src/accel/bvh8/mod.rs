@@ -35,7 +35,7 @@ const EMPTY: u32 = u32::MAX;
 const LEAF: u32 = 1 << 31;
 /// Bits of a leaf's first primitive: a tree holds fewer primitives than this.
 const LEAF_FIRST_BITS: u32 = 28;
-/// The limit on primitives that [`LEAF_FIRST_BITS`] sets.
+/// The limit on a tree's primitives (2^28) that the leaf words set.
 pub const MAX_PRIMITIVES: usize = 1 << LEAF_FIRST_BITS;
 /// Each visit pushes at most `WIDTH − 1` children, and no path through the
 /// wide tree is longer than one through the binary tree; a visit writes all
@@ -59,7 +59,7 @@ pub struct Bvh8Node {
     /// the near plane of axis `a` for a ray with `d[a] < 0` is row `a + 3`.
     pub planes: [Lanes8; 6],
     /// Interior child: its node index (below `LEAF`); leaf: `LEAF | (count
-    /// − 1) << 28 | first primitive`, at most [`MAX_LEAF`] primitives;
+    /// − 1) << 28 | first primitive`, at most 8 primitives (`MAX_LEAF`);
     /// `EMPTY`.
     pub child: [u32; WIDTH],
     /// Bits `3q .. 3q + 3` of lane `j`: the child visited `j`-th by rays of
