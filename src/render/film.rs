@@ -179,7 +179,7 @@ impl StagedFile {
     /// Writes `film` in the format of the final path's extension: a PNG of
     /// its pixels, or an EXR with its frame as display window, its crop as
     /// data window, and its sample range, fingerprint and sums (see
-    /// [`write_film_exr`]).
+    /// `write_film_exr`).
     pub fn write_film(&mut self, film: &Film) -> Result<(), ImageWriteError> {
         let image = &film.image;
         let format = ImageFormat::from_path(&self.path).ok_or_else(|| {
@@ -370,7 +370,7 @@ pub enum FilmReadError {
     NotAPart { path: PathBuf, reason: String },
 }
 
-/// Reads the header of an EXR written by glint (see [`write_film_exr`]),
+/// Reads the header of an EXR written by glint (see `write_film_exr`),
 /// without its pixels.
 pub fn read_film_header(path: &Path) -> Result<FilmHeader, FilmReadError> {
     let bytes = read_part_file(path)?;

@@ -57,7 +57,7 @@ impl Camera {
     /// `points`): the same rays bit for bit, computed lane by lane with the
     /// same operations in the same order (`(f + r·sx) + u·sy`, then
     /// `d / √((dx² + dy²) + dz²)`), laid out so that the compiler computes
-    /// [`CAMERA_BATCH`] square roots and divisions together instead of one
+    /// `CAMERA_BATCH` square roots and divisions together instead of one
     /// long dependency chain per ray.
     pub fn rays(&self, points: &[(f32, f32)], width: u32, height: u32, out: &mut [Ray]) {
         assert_eq!(points.len(), out.len());

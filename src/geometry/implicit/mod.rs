@@ -185,7 +185,7 @@ impl Implicit {
     /// transpose. Where the gradient vanishes (the heart's cusps and the curve
     /// along its "equator", where `f = g³` near the surface), it gives no
     /// direction; the normal is then that of the plane through the hit and two
-    /// nearby hits of rays parallel to this one (see [`Implicit::fallback_normal`]).
+    /// nearby hits of rays parallel to this one (see `Implicit::fallback_normal`).
     // Out of line: keeps the dispatch of the cheap shapes small in the hot loop.
     #[inline(never)]
     pub fn surface(&self, ray: &Ray, hit: &ShapeHit) -> SurfacePoint {

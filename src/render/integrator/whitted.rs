@@ -10,7 +10,7 @@ use crate::shading::{Bsdf, bsdf_at, fresnel_dielectric, reflect, refract};
 
 /// Whitted's recursive ray tracing.
 ///
-/// At each hit: the local terms (as [`Raycast`]), plus for a mirror a reflected
+/// At each hit: the local terms (as [`Raycast`](super::Raycast)), plus for a mirror a reflected
 /// ray weighted by its reflectance, and for a dielectric a reflected and a
 /// refracted ray weighted by the Fresnel reflectance `R` and transmittance `T`
 /// (total internal reflection: `R = 1`). Recursion ends at diffuse surfaces
