@@ -14,7 +14,7 @@ use crate::accel::bvh::TraversalCounters;
 use crate::math::{Ray, Vec3};
 use glam::Vec4;
 use std::mem::MaybeUninit;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 
 /// What every lane implementation needs of a ray: origin, finite inverse
 /// direction, the rows of the near and far planes, `t_min`, and the octant
@@ -22,8 +22,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 struct RaySetup {
     o: Vec3,
     inv: Vec3,
-    near: [usize; 3],
-    far: [usize; 3],
     t_min: f32,
     octant: u32,
 }
@@ -33,14 +31,12 @@ impl RaySetup {
     fn new(ray: &Ray) -> Self {
         // Finite, so (plane − o)·inv is never 0·∞ = NaN (see `Bvh`).
         let inv = ray.d.recip().clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
-        let negative = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
         RaySetup {
             o: ray.o,
             inv,
-            near: std::array::from_fn(|a| a + 3 * negative[a] as usize),
-            far: std::array::from_fn(|a| a + 3 * !negative[a] as usize),
             t_min: ray.t_min,
-            octant: (0..3).map(|a| (!negative[a] as u32) << a).sum(),
+            // Bit a set unless inv[a] < 0.
+            octant: !inv.cmplt(Vec3::ZERO).bitmask() & 7,
         }
     }
 }
@@ -118,11 +114,12 @@ struct PortableLanes {
 impl PortableLanes {
     #[inline(always)]
     fn new(r: &RaySetup) -> Self {
+        let negative = |a: usize| r.octant & (1 << a) == 0;
         PortableLanes {
             o: [0, 1, 2].map(|a| Vec4::splat(r.o[a])),
             inv: [0, 1, 2].map(|a| Vec4::splat(r.inv[a])),
-            near: r.near,
-            far: r.far,
+            near: std::array::from_fn(|a| a + 3 * negative(a) as usize),
+            far: std::array::from_fn(|a| a + 3 * !negative(a) as usize),
             t_min: Vec4::splat(r.t_min),
             shift: 3 * r.octant,
         }
@@ -336,10 +333,19 @@ pub fn force_portable(portable: bool) {
 fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        !FORCE_PORTABLE.load(Ordering::Relaxed)
-            && std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("popcnt")
-            && std::arch::is_x86_feature_detected!("bmi1")
+        // 0: not checked yet; 1: no; 2: yes.
+        static DETECTED: AtomicU8 = AtomicU8::new(0);
+        let detected = match DETECTED.load(Ordering::Relaxed) {
+            0 => {
+                let yes = std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("popcnt")
+                    && std::arch::is_x86_feature_detected!("bmi1");
+                DETECTED.store(1 + yes as u8, Ordering::Relaxed);
+                yes
+            }
+            d => d == 2,
+        };
+        detected && !FORCE_PORTABLE.load(Ordering::Relaxed)
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
