@@ -353,6 +353,26 @@ fn has_avx2() -> bool {
     }
 }
 
+/// `$body` with the const `$oct` set to `$octant` (0..8), so that each
+/// octant gets its own compiled copy of the AVX2 traversal.
+macro_rules! by_octant {
+    ($octant:expr, $oct:ident => $body:expr) => {
+        by_octant!(@arms $octant, $oct, $body, 0 1 2 3 4 5 6)
+    };
+    (@arms $octant:expr, $oct:ident, $body:expr, $($k:literal)*) => {
+        match $octant {
+            $($k => {
+                const $oct: u32 = $k;
+                $body
+            })*
+            _ => {
+                const $oct: u32 = 7;
+                $body
+            }
+        }
+    };
+}
+
 impl Bvh8 {
     /// Closest hit, nearer children first, pruning by the closest `t`; as
     /// [`Bvh::closest`](crate::accel::Bvh::closest).
@@ -401,16 +421,7 @@ impl Bvh8 {
         if has_avx2() {
             // SAFETY (all): the CPU has AVX2, and the octant is the ray's.
             return unsafe {
-                match setup.octant {
-                    0 => self.closest_avx2::<0>(&setup, ray.t_max, counters, test),
-                    1 => self.closest_avx2::<1>(&setup, ray.t_max, counters, test),
-                    2 => self.closest_avx2::<2>(&setup, ray.t_max, counters, test),
-                    3 => self.closest_avx2::<3>(&setup, ray.t_max, counters, test),
-                    4 => self.closest_avx2::<4>(&setup, ray.t_max, counters, test),
-                    5 => self.closest_avx2::<5>(&setup, ray.t_max, counters, test),
-                    6 => self.closest_avx2::<6>(&setup, ray.t_max, counters, test),
-                    _ => self.closest_avx2::<7>(&setup, ray.t_max, counters, test),
-                }
+                by_octant!(setup.octant, OCT => self.closest_avx2::<OCT>(&setup, ray.t_max, counters, test))
             };
         }
         self.closest_with(ray.t_max, counters, test, &PortableLanes::new(&setup))
@@ -503,16 +514,7 @@ impl Bvh8 {
         if has_avx2() {
             // SAFETY (all): the CPU has AVX2, and the octant is the ray's.
             return unsafe {
-                match setup.octant {
-                    0 => self.any_avx2::<0>(&setup, ray.t_max, counters, test),
-                    1 => self.any_avx2::<1>(&setup, ray.t_max, counters, test),
-                    2 => self.any_avx2::<2>(&setup, ray.t_max, counters, test),
-                    3 => self.any_avx2::<3>(&setup, ray.t_max, counters, test),
-                    4 => self.any_avx2::<4>(&setup, ray.t_max, counters, test),
-                    5 => self.any_avx2::<5>(&setup, ray.t_max, counters, test),
-                    6 => self.any_avx2::<6>(&setup, ray.t_max, counters, test),
-                    _ => self.any_avx2::<7>(&setup, ray.t_max, counters, test),
-                }
+                by_octant!(setup.octant, OCT => self.any_avx2::<OCT>(&setup, ray.t_max, counters, test))
             };
         }
         self.any_with(ray.t_max, counters, test, &PortableLanes::new(&setup))
@@ -570,275 +572,4 @@ impl Bvh8 {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::accel::bvh::Bvh;
-    use crate::accel::bvh8::EMPTY;
-    use crate::math::Aabb;
-    use crate::render::Pcg32;
-
-    fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {
-        let mut rng = Pcg32::new(seed, 1);
-        (0..n)
-            .map(|_| {
-                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
-                let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.3;
-                Aabb::new(c - e, c + e)
-            })
-            .collect()
-    }
-
-    #[test]
-    fn traversal_matches_brute_force_and_tree_is_valid() {
-        let b = random_boxes(20_000, 3);
-        let bvh = Bvh::build(&b);
-        let wide = Bvh8::from_binary(&bvh);
-        // The wide tree refers to primitives by leaf position.
-        let leaf_boxes: Vec<Aabb> = bvh.indices.iter().map(|&i| b[i as usize]).collect();
-        wide.validate(&leaf_boxes).unwrap();
-        assert!(
-            wide.nodes.len() * 5 < bvh.nodes.len(),
-            "collapse fills nodes"
-        );
-        let mut rng = Pcg32::new(9, 2);
-        for _ in 0..2000 {
-            let o =
-                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - Vec3::splat(2.0);
-            let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - Vec3::splat(0.5);
-            let ray = Ray::new(o, d);
-            let inv = ray.inv_d();
-            let t_of = |p: u32| {
-                leaf_boxes[p as usize]
-                    .slab(ray.o, inv)
-                    .map(|h| h.t_enter.max(0.0))
-            };
-            let brute = (0..leaf_boxes.len() as u32)
-                .filter_map(|p| t_of(p).map(|t| (p, t)))
-                .min_by(|x, y| x.1.total_cmp(&y.1).then(x.0.cmp(&y.0)));
-            let mut counters = TraversalCounters::default();
-            let got = wide.closest(&ray, &mut counters, |p, t_max| {
-                t_of(p).filter(|&t| t < t_max)
-            });
-            assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
-            assert_eq!(
-                wide.any(&ray, &mut counters, |p| t_of(p).is_some()),
-                brute.is_some()
-            );
-            // The path taken where the CPU lacks AVX2.
-            let portable = PortableLanes::new(&RaySetup::new(&ray));
-            let nearest = |first: u32, count: u32, t_max: f32| {
-                assert!(count >= 1 && count as usize <= crate::accel::bvh::MAX_LEAF);
-                (first..first + count)
-                    .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
-                    .min_by(|x, y| x.1.total_cmp(&y.1))
-            };
-            let got = wide.closest_with(ray.t_max, &mut counters, nearest, &portable);
-            assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
-            let any = |first: u32, count: u32| (first..first + count).any(|p| t_of(p).is_some());
-            assert_eq!(
-                wide.any_with(ray.t_max, &mut counters, any, &portable),
-                brute.is_some()
-            );
-            // And the per-leaf entry points.
-            let got = wide.closest_leaves(&ray, &mut counters, nearest);
-            assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
-            assert_eq!(wide.any_leaves(&ray, &mut counters, any), brute.is_some());
-        }
-    }
-
-    /// One node visit through the AVX2 lanes of the ray's octant: the
-    /// child returned, the leaves set apart, and the stack's entries and
-    /// distances as bits.
-    #[cfg(target_arch = "x86_64")]
-    fn visit_avx2<const L: bool>(
-        setup: &RaySetup,
-        node: &Bvh8Node,
-        t_max: f32,
-    ) -> (Option<u32>, u32, Vec<(u32, u32)>) {
-        fn run<const OCT: u32, const L: bool>(
-            setup: &RaySetup,
-            node: &Bvh8Node,
-            t_max: f32,
-            stack: &mut Stack,
-        ) -> (Option<u32>, u32) {
-            // SAFETY: called only where the CPU has AVX2.
-            unsafe { avx2::Avx2Lanes::<OCT>::new(setup) }.visit::<L>(node, t_max, stack)
-        }
-        let mut stack = Stack::new();
-        let (next, leaves) = match setup.octant {
-            0 => run::<0, L>(setup, node, t_max, &mut stack),
-            1 => run::<1, L>(setup, node, t_max, &mut stack),
-            2 => run::<2, L>(setup, node, t_max, &mut stack),
-            3 => run::<3, L>(setup, node, t_max, &mut stack),
-            4 => run::<4, L>(setup, node, t_max, &mut stack),
-            5 => run::<5, L>(setup, node, t_max, &mut stack),
-            6 => run::<6, L>(setup, node, t_max, &mut stack),
-            _ => run::<7, L>(setup, node, t_max, &mut stack),
-        };
-        (next, leaves, drain(&mut stack))
-    }
-
-    fn drain(stack: &mut Stack) -> Vec<(u32, u32)> {
-        let mut items = Vec::new();
-        while let Some((c, d)) = stack.pop() {
-            items.push((c, d.to_bits()));
-        }
-        items
-    }
-
-    #[test]
-    fn avx2_and_portable_visits_agree_bit_for_bit() {
-        let b = random_boxes(5000, 4);
-        let bvh = Bvh::build(&b);
-        let wide = Bvh8::from_binary(&bvh);
-        let mut rng = Pcg32::new(5, 3);
-        let mut compared = 0;
-        let mut pushed = 0;
-        for i in 0..20_000 {
-            let o =
-                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - Vec3::splat(2.0);
-            let mut d =
-                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - Vec3::splat(0.5);
-            // Axis-parallel directions too: 1/0 clamps to ±1e30.
-            if i % 7 == 0 {
-                d[i % 3] = 0.0;
-            }
-            let mut ray = Ray::new(o, d);
-            ray.t_max = rng.next_f32() * 20.0;
-            let setup = RaySetup::new(&ray);
-            let portable = PortableLanes::new(&setup);
-            for node in wide.nodes.iter().step_by(17) {
-                let mut t_p = [0f32; WIDTH];
-                let m_p = portable.test(node, ray.t_max, &mut t_p);
-                let mut stack = Stack::new();
-                let (next_p, no_leaves) = portable.visit::<false>(node, ray.t_max, &mut stack);
-                assert_eq!(no_leaves, 0);
-                let stack_p = drain(&mut stack);
-                pushed += stack_p.len();
-                let (next_l, leaves_l) = portable.visit::<true>(node, ray.t_max, &mut stack);
-                let stack_l = drain(&mut stack);
-                #[cfg(target_arch = "x86_64")]
-                if has_avx2() {
-                    assert_eq!(
-                        visit_avx2::<false>(&setup, node, ray.t_max),
-                        (next_p, 0, stack_p.clone())
-                    );
-                    assert_eq!(
-                        visit_avx2::<true>(&setup, node, ray.t_max),
-                        (next_l, leaves_l, stack_l.clone())
-                    );
-                    compared += 1;
-                }
-                // Leaves apart: the same children, less the leaves, which
-                // the mask names.
-                let is_leaf = |c: u32| c & LEAF != 0;
-                let mut all: Vec<u32> = next_p.into_iter().collect();
-                all.extend(stack_p.iter().map(|e| e.0));
-                let mut inner: Vec<u32> = next_l.into_iter().collect();
-                inner.extend(stack_l.iter().map(|e| e.0));
-                let all_inner: Vec<u32> = all.iter().copied().filter(|&c| !is_leaf(c)).collect();
-                assert_eq!(inner, all_inner);
-                let named: Vec<u32> = (0..WIDTH)
-                    .filter(|&k| leaves_l & (1 << k) != 0)
-                    .map(|k| node.child[k])
-                    .collect();
-                let mut apart: Vec<u32> = all.iter().copied().filter(|&c| is_leaf(c)).collect();
-                apart.sort_by_key(|&c| (0..WIDTH).position(|k| node.child[k] == c));
-                assert_eq!(named, apart);
-                // The mask against the scalar slab test of each child, and
-                // the children taken: those hit, in the node's order.
-                let mut hit = Vec::new();
-                for k in 0..WIDTH {
-                    if node.child[k] == EMPTY {
-                        assert_eq!(m_p & (1 << k), 0);
-                        continue;
-                    }
-                    let slab = node
-                        .child_bounds(k)
-                        .slab(ray.o, ray.inv_d())
-                        .is_some_and(|h| h.t_enter.max(ray.t_min) <= h.t_exit.min(ray.t_max));
-                    assert_eq!(m_p & (1 << k) != 0, slab, "child {k}");
-                    if slab {
-                        hit.push(k);
-                    }
-                }
-                let rank = |k: usize| {
-                    (0..WIDTH)
-                        .position(|j| (node.order[j] >> (3 * setup.octant) & 7) as usize == k)
-                        .unwrap()
-                };
-                hit.sort_by_key(|&k| rank(k));
-                let want: Vec<u32> = hit.iter().map(|&k| node.child[k]).collect();
-                let mut got: Vec<u32> = next_p.into_iter().collect();
-                got.extend(stack_p.iter().map(|e| e.0));
-                assert_eq!(got, want);
-                for &(c, d) in &stack_p {
-                    let k = (0..WIDTH).find(|&k| node.child[k] == c).unwrap();
-                    assert_eq!(d, t_p[k].to_bits());
-                }
-            }
-        }
-        assert!(pushed > 1000, "visits with several children hit: {pushed}");
-        if has_avx2() {
-            assert!(compared > 0);
-        }
-    }
-
-    #[test]
-    fn whole_traversals_agree_with_and_without_avx2() {
-        let b = random_boxes(20_000, 8);
-        let bvh = Bvh::build(&b);
-        let wide = Bvh8::from_binary(&bvh);
-        let leaf_boxes: Vec<Aabb> = bvh.indices.iter().map(|&i| b[i as usize]).collect();
-        let mut rng = Pcg32::new(12, 4);
-        let mut results = [Vec::new(), Vec::new()];
-        for (pass, out) in results.iter_mut().enumerate() {
-            let setups: Vec<Ray> = (0..3000)
-                .map(|_| {
-                    let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0
-                        - Vec3::splat(2.0);
-                    let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())
-                        - Vec3::splat(0.5);
-                    Ray::new(o, d)
-                })
-                .collect();
-            rng = Pcg32::new(12, 4);
-            for ray in setups {
-                let inv = ray.inv_d();
-                let t_of = |p: u32| {
-                    leaf_boxes[p as usize]
-                        .slab(ray.o, inv)
-                        .map(|h| h.t_enter.max(0.0))
-                };
-                let mut c = TraversalCounters::default();
-                let mut order = Vec::new();
-                let hit = if pass == 0 {
-                    wide.closest_leaves(&ray, &mut c, |first, count, t_max| {
-                        order.push(first);
-                        (first..first + count)
-                            .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
-                            .min_by(|x, y| x.1.total_cmp(&y.1))
-                    })
-                } else {
-                    let mut c2 = TraversalCounters::default();
-                    let portable = PortableLanes::new(&RaySetup::new(&ray));
-                    let r = wide.closest_with(
-                        ray.t_max,
-                        &mut c2,
-                        |first, count, t_max| {
-                            order.push(first);
-                            (first..first + count)
-                                .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
-                                .min_by(|x, y| x.1.total_cmp(&y.1))
-                        },
-                        &portable,
-                    );
-                    c = c2;
-                    r
-                };
-                out.push((hit.map(|h| (h.0, h.1.to_bits())), order, c.nodes_visited));
-            }
-        }
-        assert_eq!(results[0], results[1]);
-    }
-}
+mod tests;
