@@ -21,19 +21,21 @@ pub struct Interval {
 /// At least one ulp of `x` (`ulp(x) ≤ |x|·2⁻⁵²` for normal numbers, the
 /// smallest subnormal below them), computed without branches: `next_up` and
 /// `next_down` branch on sign and zero, which costs more than the arithmetic.
+/// Finite for infinite `x`.
 #[inline]
 fn ulp_bound(x: f64) -> f64 {
-    (x.abs() * f64::EPSILON).max(f64::from_bits(1))
+    (x.abs() * f64::EPSILON).clamp(f64::from_bits(1), f64::MAX)
 }
 
 /// `x` rounded down by at least one ulp (round-to-nearest of `x − δ` with
-/// `δ ≥ ulp(x)` is at most `next_down(x)`).
+/// `δ ≥ ulp(x)` is at most `next_down(x)`). `+∞` stays `+∞` (`δ` is at most
+/// `f64::MAX`, so no `∞ − ∞` makes a NaN, the empty interval's mark).
 #[inline]
 fn down(x: f64) -> f64 {
     x - ulp_bound(x)
 }
 
-/// `x` rounded up by at least one ulp.
+/// `x` rounded up by at least one ulp (`−∞` stays `−∞`).
 #[inline]
 fn up(x: f64) -> f64 {
     x + ulp_bound(x)
@@ -114,6 +116,11 @@ impl Interval {
     /// Quotient. A divisor containing zero gives all reals (the quotient is
     /// unbounded near the zero), except a divisor of exactly `[0, 0]`, where the
     /// quotient is undefined (empty).
+    ///
+    /// An infinite bound stands for values past `f64::MAX` (an overflow, as
+    /// in f64 arithmetic: `[∞, ∞]` is what overflowed upwards), so
+    /// `±∞/±∞` is any quotient of that sign, from 0 to ∞: both enter the
+    /// hull (IEEE's NaN there would make the result empty).
     #[inline]
     fn quotient(self, o: Interval) -> Interval {
         if self.is_empty() || o.is_empty() || (o.lo == 0.0 && o.hi == 0.0) {
@@ -122,15 +129,23 @@ impl Interval {
         if o.lo <= 0.0 && o.hi >= 0.0 {
             return Interval::ENTIRE;
         }
-        let q = |a: f64, b: f64| a / b;
-        let (q1, q2, q3, q4) = (
-            q(self.lo, o.lo),
-            q(self.lo, o.hi),
-            q(self.hi, o.lo),
-            q(self.hi, o.hi),
-        );
-        let lo = q1.min(q2).min(q3).min(q4);
-        let hi = q1.max(q2).max(q3).max(q4);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (a, b) in [
+            (self.lo, o.lo),
+            (self.lo, o.hi),
+            (self.hi, o.lo),
+            (self.hi, o.hi),
+        ] {
+            let q = a / b;
+            let (q_lo, q_hi) = if q.is_nan() {
+                let signed = (a.signum() * b.signum()) * f64::INFINITY;
+                (signed.min(0.0), signed.max(0.0))
+            } else {
+                (q, q)
+            };
+            lo = lo.min(q_lo);
+            hi = hi.max(q_hi);
+        }
         Interval::new(down(lo), up(hi))
     }
 
@@ -247,7 +262,8 @@ impl Interval {
         if self.is_empty() {
             return self;
         }
-        if self.width() >= TAU {
+        // Also where a bound is infinite (an overflow; [∞, ∞] has a NaN width).
+        if self.width() >= TAU || self.lo.is_infinite() || self.hi.is_infinite() {
             return Interval::new(-1.0, 1.0);
         }
         let (fa, fb) = (f(self.lo), f(self.hi));
@@ -288,7 +304,13 @@ impl std::ops::Add for Interval {
     type Output = Interval;
     #[inline]
     fn add(self, o: Interval) -> Interval {
-        Interval::new(down(self.lo + o.lo), up(self.hi + o.hi))
+        let (lo, hi) = (self.lo + o.lo, self.hi + o.hi);
+        // One test for both (also true for [−∞, ∞], which the slow path
+        // gets right too).
+        if (lo + hi).is_nan() {
+            return overflowed_or_empty(lo, hi, self, o);
+        }
+        Interval::new(down(lo), up(hi))
     }
 }
 
@@ -296,7 +318,11 @@ impl std::ops::Sub for Interval {
     type Output = Interval;
     #[inline]
     fn sub(self, o: Interval) -> Interval {
-        Interval::new(down(self.lo - o.hi), up(self.hi - o.lo))
+        let (lo, hi) = (self.lo - o.hi, self.hi - o.lo);
+        if (lo + hi).is_nan() {
+            return overflowed_or_empty(lo, hi, self, o);
+        }
+        Interval::new(down(lo), up(hi))
     }
 }
 
@@ -322,6 +348,23 @@ impl std::ops::Div for Interval {
     fn div(self, o: Interval) -> Interval {
         self.quotient(o)
     }
+}
+
+/// A sum or difference whose bound `lo` or `hi` came out NaN: from an
+/// empty operand (the result is empty), or from `∞ − ∞`, two overflowed
+/// bounds whose difference may be anything (that bound is unbounded).
+#[cold]
+fn overflowed_or_empty(lo: f64, hi: f64, a: Interval, b: Interval) -> Interval {
+    if a.is_empty() || b.is_empty() {
+        return Interval::EMPTY;
+    }
+    let lo = if lo.is_nan() {
+        f64::NEG_INFINITY
+    } else {
+        down(lo)
+    };
+    let hi = if hi.is_nan() { f64::INFINITY } else { up(hi) };
+    Interval::new(lo, hi)
 }
 
 /// `|x|^n`, rounded down or up at every multiplication (exponentiation by
@@ -437,6 +480,51 @@ mod tests {
         assert!(r.lo <= 0.1f64.cos());
     }
 
+    #[test]
+    fn overflowed_bounds_never_make_an_interval_empty() {
+        // [∞, ∞] stands for values past f64::MAX: 333e3333 in a formula, or
+        // a power that overflowed. Found by the fuzzer: x·z^33333/333e3333
+        // over a box was [−∞, ∞]/[∞, ∞], NaN in IEEE, the empty interval.
+        let inf = iv(f64::INFINITY, f64::INFINITY);
+        let q = Interval::ENTIRE / inf;
+        assert!(q.contains(0.0), "{q:?}");
+        let q = inf / inf;
+        assert!(q.contains(0.0) && q.hi == f64::INFINITY, "{q:?}");
+        let q = iv(-f64::INFINITY, -1.0) / inf;
+        assert!(
+            q.contains(-1e300) && q.contains(0.0) && q.hi < 1e-300,
+            "{q:?}"
+        );
+        let s = inf - inf;
+        assert_eq!(s, Interval::ENTIRE);
+        let s = Interval::ENTIRE + inf;
+        assert!(s.lo == f64::NEG_INFINITY && s.hi == f64::INFINITY, "{s:?}");
+        let p = iv(1e200, 1e200) * iv(1e200, 1e200);
+        assert_eq!(p, inf);
+        assert_eq!(inf.sin(), iv(-1.0, 1.0));
+        assert_eq!(iv(1e300, 1e301).exp().hi, f64::INFINITY);
+        assert!(!iv(1e300, 1e301).exp().is_empty());
+        // Emptiness itself still propagates.
+        assert!((Interval::EMPTY + inf).is_empty());
+        assert!((inf - Interval::EMPTY).is_empty());
+        assert!((Interval::EMPTY / inf).is_empty());
+    }
+
+    /// Bounds anywhere in f64, overflowed ones (±∞) included.
+    fn wide_bound() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            Just(f64::INFINITY),
+            Just(f64::NEG_INFINITY),
+            Just(f64::MAX),
+            Just(0.0),
+            (-1.0f64..1.0, -320i32..309).prop_map(|(m, e)| m * 10f64.powi(e)),
+        ]
+    }
+
+    fn wide_interval() -> impl Strategy<Value = Interval> {
+        (wide_bound(), wide_bound()).prop_map(|(a, b)| iv(a.min(b), a.max(b)))
+    }
+
     fn interval() -> impl Strategy<Value = Interval> {
         (-5.0f64..5.0, 0.0f64..3.0).prop_map(|(a, w)| iv(a, a + w))
     }
@@ -469,6 +557,25 @@ mod tests {
             check(a.min(b), x.min(y), "min");
             check(a.max(b), x.max(y), "max");
             check(-a, -x, "neg");
+        }
+
+        /// Operations defined everywhere never turn non-empty operands,
+        /// however large, into the empty interval (which a root search
+        /// reads as "undefined here" and skips).
+        #[test]
+        fn total_operations_stay_non_empty(a in wide_interval(), b in wide_interval(), n in -4i32..7) {
+            let all = [
+                ("add", a + b), ("sub", a - b), ("mul", a * b), ("powi", a.powi(n)),
+                ("exp", a.exp()), ("sin", a.sin()), ("cos", a.cos()), ("abs", a.abs()),
+                ("min", a.min(b)), ("max", a.max(b)), ("neg", -a),
+            ];
+            for (name, r) in all {
+                assert!(!r.is_empty() && r.lo <= r.hi, "{name}: {a:?}, {b:?} (n = {n}) gave {r:?}");
+            }
+            if !(b.lo == 0.0 && b.hi == 0.0) {
+                let r = a / b;
+                assert!(!r.is_empty() && r.lo <= r.hi, "div: {a:?} / {b:?} gave {r:?}");
+            }
         }
     }
 }

@@ -753,6 +753,21 @@ mod tests {
     }
 
     #[test]
+    fn overflowing_terms_still_enclose_the_range() {
+        // Found by the fuzzer: 333e3333 is ∞, z^33333 overflows over the
+        // box, and their quotient was NaN (read as "undefined everywhere").
+        let t = tape("(x^3 − -  1)^3 - x^1*z^33333/333e3333 - 2*z^3");
+        let b = Interval::new(-1.5, 1.5);
+        let range = t.eval(b, b, b);
+        let p = -1.5 + 3.0 * 32768.0 / 65535.0;
+        let value = t.eval(p, p, p);
+        assert!(
+            value.is_finite() && range.contains(value),
+            "{value} ∉ {range:?}"
+        );
+    }
+
+    #[test]
     fn interval_derivative_encloses_point_derivatives() {
         let t = tape("(x^2 + 9/4*y^2 + z^2 - 1)^3 - x^2*z^3 - 9/80*y^2*z^3");
         let (o, d) = ([0.2, -0.4, -2.0], [0.1, 0.3, 1.0]);
