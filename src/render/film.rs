@@ -3,6 +3,7 @@
 //! that a failed or interrupted write never leaves a partial image.
 
 use super::parts::{Film, FilmHeader, SampleSum, check_header};
+use super::srgb::srgb8_pixels;
 use crate::math::Color;
 use crate::settings::{Rect, SampleRange};
 use std::path::{Path, PathBuf};
@@ -49,27 +50,9 @@ impl Image {
     /// 8-bit sRGB, three bytes per pixel: each channel clamped to [0, 1],
     /// encoded with the sRGB transfer function (IEC 61966-2-1) and rounded.
     pub fn to_srgb8(&self) -> Vec<u8> {
-        self.pixels
-            .iter()
-            .flat_map(|c| c.to_array())
-            .map(srgb8)
-            .collect()
-    }
-}
-
-/// A linear channel as an 8-bit sRGB value, rounded.
-fn srgb8(v: f32) -> u8 {
-    (srgb_encode(v) * 255.0 + 0.5) as u8
-}
-
-/// The sRGB transfer function: `12.92·v` below 0.0031308, else
-/// `1.055·v^(1/2.4) − 0.055`; input clamped to [0, 1] (NaN gives 0).
-pub fn srgb_encode(v: f32) -> f32 {
-    let v = if v > 0.0 { v.min(1.0) } else { 0.0 };
-    if v <= 0.003_130_8 {
-        12.92 * v
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
+        let mut out = Vec::with_capacity(self.pixels.len() * 3);
+        srgb8_pixels(&self.pixels, &mut out);
+        out
     }
 }
 
@@ -260,12 +243,7 @@ fn write_png(out: impl std::io::Write, image: &Image) -> Result<(), String> {
     for y in 0..image.height as usize {
         let w = image.width as usize;
         row.clear();
-        row.extend(
-            image.pixels[y * w..(y + 1) * w]
-                .iter()
-                .flat_map(|c| c.to_array())
-                .map(srgb8),
-        );
+        srgb8_pixels(&image.pixels[y * w..(y + 1) * w], &mut row);
         std::io::Write::write_all(&mut stream, &row).map_err(|e| e.to_string())?;
     }
     stream.finish().map_err(|e| e.to_string())?;
@@ -600,16 +578,6 @@ pub fn write_image(path: &Path, image: &Image) -> Result<(), ImageWriteError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn srgb_encoding_matches_the_standard() {
-        assert_eq!(srgb_encode(0.0), 0.0);
-        assert!((srgb_encode(1.0) - 1.0).abs() < 1e-6);
-        assert_eq!(srgb_encode(2.0), srgb_encode(1.0));
-        assert_eq!(srgb_encode(f32::NAN), 0.0);
-        assert!((srgb_encode(0.18) - 0.4613).abs() < 1e-3);
-        assert!((srgb_encode(0.003) - 0.03876).abs() < 1e-4);
-    }
 
     #[test]
     fn format_follows_extension() {

@@ -2,7 +2,7 @@
 //! numbers can be read, normal maps, albedo and object ids, as 8-bit RGB.
 
 use super::aov::{Aov, AovPixel, normal_color};
-use super::film::srgb_encode;
+use super::srgb::srgb8;
 
 /// An 8-bit RGB picture, row-major.
 pub struct Picture {
@@ -181,7 +181,7 @@ pub fn aov_pictures(aov: Aov, pixels: &[AovPixel], width: u32, height: u32) -> V
         }
         p
     };
-    let srgb = |c: [f32; 3]| c.map(|v| (srgb_encode(v) * 255.0 + 0.5) as u8);
+    let srgb = |c: [f32; 3]| c.map(srgb8);
     match aov {
         Aov::Depth => vec![heat(&|p| p.depth as f64)],
         Aov::Normal => vec![colors(&|p| {

@@ -14,12 +14,13 @@ mod integrator;
 pub mod memory;
 pub mod parts;
 mod sampler;
+mod srgb;
 mod stats;
 
 pub use aov::{Aov, AovPixel};
 pub use film::{
     FilmReadError, Image, ImageFormat, ImageWriteError, StagedFile, commit_all, png_bytes,
-    read_film_exr, read_film_header, srgb_encode, write_image,
+    read_film_exr, read_film_header, write_image,
 };
 pub use integrator::{
     AnyIntegrator, Counters, Integrator, MAX_RAY_TREE, NoRecord, Path, RayKind, Raycast, Recorder,
@@ -27,6 +28,7 @@ pub use integrator::{
 };
 pub use parts::{Film, FilmHeader, MergeError, SampleSum};
 pub use sampler::{Pcg32, PixelSampler, PixelSamples};
+pub use srgb::{srgb_encode, srgb8, srgb8_exact};
 pub use stats::{RayCounts, RenderStats, TileCounters};
 
 use crate::math::{Color, Ray, Vec3};
