@@ -6,6 +6,7 @@
 //! once, for the closest hit only, and [`Shape::uv`] the texture coordinates
 //! only for textures that use them. Shapes know nothing of materials.
 
+pub mod batch;
 mod cuboid;
 pub mod implicit;
 mod mesh;

@@ -561,6 +561,57 @@ fn deal<'a, T>(
     }
 }
 
+/// Most samples per pixel for which a tile's camera rays are traced
+/// together (see [`Integrator::radiance_stream`]).
+const STREAM_SPP: u32 = 16;
+
+/// The radiance of every sample of the tile (pixel by pixel in rows, each
+/// pixel's samples in order), traced many at a time by the integrator; `None`
+/// if it cannot (nothing is then counted).
+fn stream_tile<I: Integrator>(
+    scene: &Scene,
+    integrator: &I,
+    tile: &Tile,
+    settings: &RenderSettings,
+    counters: &mut Counters,
+) -> Option<Vec<Color>> {
+    const CHUNK: usize = 1024;
+    let samples = settings.samples();
+    let (width, height) = (settings.width, settings.height);
+    let mut points = Vec::with_capacity(CHUNK);
+    let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); CHUNK];
+    let pixels = tile.rows.iter().map(|r| r.len()).sum::<usize>();
+    let mut out = vec![Color::ZERO; pixels * samples.count as usize];
+    let mut done = 0;
+    let mut trace = |points: &mut Vec<(f32, f32)>, done: &mut usize| {
+        let n = points.len();
+        scene.camera.rays(points, width, height, &mut rays[..n]);
+        points.clear();
+        let ok =
+            integrator.radiance_stream(scene, &rays[..n], counters, &mut out[*done..*done + n]);
+        *done += n;
+        ok
+    };
+    for (dy, row) in tile.rows.iter().enumerate() {
+        let y = tile.y0 + dy as u32;
+        for dx in 0..row.len() {
+            let x = tile.x0 + dx as u32;
+            let mut pixel = PixelSamples::new(x, y);
+            for index in samples.start..samples.start + samples.count {
+                let (u, v) = pixel.offset(index);
+                points.push((x as f32 + u, y as f32 + v));
+                if points.len() == CHUNK && !trace(&mut points, &mut done) {
+                    return None;
+                }
+            }
+        }
+    }
+    if !points.is_empty() && !trace(&mut points, &mut done) {
+        return None;
+    }
+    Some(out)
+}
+
 fn render_tile<I: Integrator>(
     scene: &Scene,
     settings: &RenderSettings,
@@ -598,9 +649,22 @@ fn render_tile<I: Integrator>(
             height,
         )
     };
+    // Integrators that can trace many camera rays at once get the tile's
+    // (with at most `STREAM_SPP` samples per pixel), else a pixel's samples
+    // `RAYS` at a time; the first refusal stops the asking. Output
+    // variables need each pixel's own counts: not then.
+    let mut streaming = !missed && tile.aovs.is_empty();
+    let mut streamed = [Color::ZERO; RAYS];
+    let tile_streamed = if streaming && samples.count <= STREAM_SPP {
+        let out = stream_tile(scene, integrator, tile, settings, &mut counters);
+        streaming = out.is_some();
+        out
+    } else {
+        None
+    };
     for (dy, row) in tile.rows.iter_mut().enumerate() {
         let y = tile.y0 + dy as u32;
-        if single {
+        if single && tile_streamed.is_none() {
             for (dx, (p, s)) in points
                 .iter_mut()
                 .zip(&mut row_samples[..row.len()])
@@ -616,6 +680,7 @@ fn render_tile<I: Integrator>(
                 .camera
                 .rays(&points[..n], width, height, &mut rays[..n]);
         }
+        let row_len = row.len();
         for (dx, pixel) in row.iter_mut().enumerate() {
             let x = tile.x0 + dx as u32;
             let mut sum = SampleSum::default();
@@ -632,7 +697,7 @@ fn render_tile<I: Integrator>(
                 let ray = if single {
                     rays[dx]
                 } else {
-                    if k == 0 {
+                    if k == 0 && tile_streamed.is_none() {
                         let n = (samples.end() - index).min(RAYS as u64) as usize;
                         for (j, p) in points[..n].iter_mut().enumerate() {
                             let (u, v) = pixel_samples.offset(index as u32 + j as u32);
@@ -641,6 +706,14 @@ fn render_tile<I: Integrator>(
                         scene
                             .camera
                             .rays(&points[..n], width, height, &mut rays[..n]);
+                        if streaming {
+                            streaming = integrator.radiance_stream(
+                                scene,
+                                &rays[..n],
+                                &mut counters,
+                                &mut streamed[..n],
+                            );
+                        }
                     }
                     rays[k]
                 };
@@ -651,6 +724,13 @@ fn render_tile<I: Integrator>(
                     None
                 };
                 let mut l = escaped.unwrap_or_else(|| {
+                    if let Some(out) = &tile_streamed {
+                        let sample = (index - samples.start as u64) as usize;
+                        return out[(dy * row_len + dx) * samples.count as usize + sample];
+                    }
+                    if streaming {
+                        return streamed[k];
+                    }
                     let mut sampler = pixel_samples.sampler(index as u32);
                     integrator.radiance(scene, &ray, &mut sampler, &mut counters)
                 });

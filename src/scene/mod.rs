@@ -26,6 +26,7 @@ pub use texture::{CheckerMode, Texture};
 
 use crate::accel::{Bvh, Tlas, TraversalCounters};
 pub use crate::geometry::TraceCounters;
+use crate::geometry::batch::{BATCH, Closest, RayBatch};
 use crate::geometry::{Shape, ShapeHit, SurfacePoint};
 use crate::light::LightSet;
 use crate::math::{Aabb, Color, Ray, Vec3};
@@ -557,9 +558,132 @@ impl Scene {
         hit
     }
 
+    /// Whether [`Scene::intersect_batch`] and [`Scene::occludes_batch`] can
+    /// answer for this scene: few objects (tested in a plain loop), all of
+    /// them spheres, planes or boxes.
+    pub fn batchable(&self) -> bool {
+        self.linear
+            && self.objects.iter().all(|o| {
+                matches!(
+                    o.shape,
+                    Shape::Sphere(_) | Shape::Plane(_) | Shape::Cuboid(_)
+                )
+            })
+    }
+
+    /// [`Scene::intersect`] for a batch of rays at once, each object tested
+    /// against all of them (SIMD lanes); the same hits, bit for bit, and the
+    /// same counts. Only for [`Scene::batchable`] scenes.
+    pub fn intersect_batch(&self, rays: &RayBatch, counters: &mut TraceCounters) -> Closest {
+        debug_assert!(self.batchable());
+        counters.intersection_tests += (self.objects.len() * rays.len) as u64;
+        #[cfg(target_arch = "x86_64")]
+        {
+            if simd_level() >= 2 {
+                // SAFETY: the CPU has AVX-512F (checked just above).
+                return unsafe { self.intersect_batch_avx512(rays) };
+            }
+            if simd_level() == 1 {
+                // SAFETY: the CPU has AVX2 (checked just above).
+                return unsafe { self.intersect_batch_avx2(rays) };
+            }
+        }
+        self.intersect_batch_lanes(rays)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn intersect_batch_avx512(&self, rays: &RayBatch) -> Closest {
+        self.intersect_batch_lanes(rays)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn intersect_batch_avx2(&self, rays: &RayBatch) -> Closest {
+        self.intersect_batch_lanes(rays)
+    }
+
+    #[inline(always)]
+    fn intersect_batch_lanes(&self, rays: &RayBatch) -> Closest {
+        let mut best = Closest::start(rays);
+        for (i, o) in self.objects.iter().enumerate() {
+            match &o.shape {
+                Shape::Sphere(s) => s.closest_batch(rays, &mut best, i as u32),
+                Shape::Plane(s) => s.closest_batch(rays, &mut best, i as u32),
+                Shape::Cuboid(s) => s.closest_batch(rays, &mut best, i as u32),
+                _ => unreachable!("intersect_batch on a scene that is not batchable"),
+            }
+        }
+        best
+    }
+
+    /// [`Shape::occludes`] of object `i` (a sphere, plane or box) for a
+    /// batch of rays: `hit[j]` for ray `j`. Counts nothing (the caller
+    /// knows which tests it needed).
+    pub fn occludes_batch(&self, i: u32, rays: &RayBatch, hit: &mut [bool; BATCH]) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if simd_level() >= 2 {
+                // SAFETY: the CPU has AVX-512F.
+                return unsafe { self.occludes_batch_avx512(i, rays, hit) };
+            }
+            if simd_level() == 1 {
+                // SAFETY: the CPU has AVX2.
+                return unsafe { self.occludes_batch_avx2(i, rays, hit) };
+            }
+        }
+        self.occludes_batch_lanes(i, rays, hit)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn occludes_batch_avx512(&self, i: u32, rays: &RayBatch, hit: &mut [bool; BATCH]) {
+        self.occludes_batch_lanes(i, rays, hit)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn occludes_batch_avx2(&self, i: u32, rays: &RayBatch, hit: &mut [bool; BATCH]) {
+        self.occludes_batch_lanes(i, rays, hit)
+    }
+
+    #[inline(always)]
+    fn occludes_batch_lanes(&self, i: u32, rays: &RayBatch, hit: &mut [bool; BATCH]) {
+        match &self.objects[i as usize].shape {
+            Shape::Sphere(s) => s.any_batch(rays, hit),
+            Shape::Plane(s) => s.any_batch(rays, hit),
+            Shape::Cuboid(s) => s.any_batch(rays, hit),
+            _ => unreachable!("occludes_batch on a shape without a batch test"),
+        }
+    }
+
     /// Whether object `i`'s material stops shadow rays (all but dielectrics).
     #[inline(always)]
     pub fn is_opaque(&self, i: u32) -> bool {
         self.opaque[i as usize]
+    }
+}
+
+/// The widest vector unit the batch tests may use: 2 for AVX-512, 1 for
+/// AVX2, 0 for the baseline (checked once, then cached).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn simd_level() -> u8 {
+    use std::sync::atomic::{AtomicU8, Ordering};
+    // 0: not checked yet; else 1 + the level.
+    static LEVEL: AtomicU8 = AtomicU8::new(0);
+    match LEVEL.load(Ordering::Relaxed) {
+        0 => {
+            let level = if std::arch::is_x86_feature_detected!("avx512f") {
+                2
+            } else if std::arch::is_x86_feature_detected!("avx2") {
+                1
+            } else {
+                0
+            };
+            LEVEL.store(1 + level, Ordering::Relaxed);
+            level
+        }
+        l => l - 1,
     }
 }

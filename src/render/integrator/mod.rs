@@ -5,6 +5,7 @@
 
 mod path;
 mod raycast;
+mod stream;
 mod whitted;
 
 pub use path::Path;
@@ -56,6 +57,21 @@ pub trait Integrator: Sync {
         None
     }
 
+    /// The radiance of each camera ray of `rays` into `out`, exactly as
+    /// [`Integrator::radiance`] gives it, for integrators that can trace
+    /// many rays at once in `scene` (without random numbers); returns false,
+    /// having done nothing, where they cannot (the default).
+    fn radiance_stream(
+        &self,
+        scene: &Scene,
+        rays: &[Ray],
+        counters: &mut Counters,
+        out: &mut [Color],
+    ) -> bool {
+        let _ = (scene, rays, counters, out);
+        false
+    }
+
     /// [`Integrator::radiance`], telling `tree` about every ray it traces
     /// (`glint explain`). Integrators that cannot tell return the radiance
     /// and leave the tree empty.
@@ -89,6 +105,18 @@ pub trait Tracer: Sync {
     /// The radiance of a camera ray that hits nothing: what
     /// [`Tracer::trace`] returns for it, computed by the same code.
     fn escaped(&self, scene: &Scene, ray: &Ray) -> Color;
+
+    /// See [`Integrator::radiance_stream`].
+    fn trace_stream(
+        &self,
+        scene: &Scene,
+        rays: &[Ray],
+        counters: &mut Counters,
+        out: &mut [Color],
+    ) -> bool {
+        let _ = (scene, rays, counters, out);
+        false
+    }
 }
 
 impl<T: Tracer> Integrator for T {
@@ -117,6 +145,17 @@ impl<T: Tracer> Integrator for T {
         tree: &mut RayTree,
     ) -> Color {
         self.trace(scene, ray, sampler, counters, tree)
+    }
+
+    #[inline]
+    fn radiance_stream(
+        &self,
+        scene: &Scene,
+        rays: &[Ray],
+        counters: &mut Counters,
+        out: &mut [Color],
+    ) -> bool {
+        self.trace_stream(scene, rays, counters, out)
     }
 }
 
@@ -171,6 +210,19 @@ impl Tracer for AnyIntegrator {
             AnyIntegrator::Raycast(i) => Tracer::escaped(i, scene, ray),
             AnyIntegrator::Whitted(i) => Tracer::escaped(i, scene, ray),
             AnyIntegrator::Path(i) => Tracer::escaped(i, scene, ray),
+        }
+    }
+
+    fn trace_stream(
+        &self,
+        scene: &Scene,
+        rays: &[Ray],
+        counters: &mut Counters,
+        out: &mut [Color],
+    ) -> bool {
+        match self {
+            AnyIntegrator::Whitted(i) => i.stream(scene, rays, counters, out),
+            _ => false,
         }
     }
 }

@@ -1,6 +1,6 @@
 //! Appel's ray casting.
 
-use super::whitted::local_shading;
+use super::whitted::{area_rotation, local_shading};
 use super::{Counters, RayKind, Recorder, Tracer, face_forward, intersect};
 use crate::math::{Color, Ray};
 use crate::render::sampler::PixelSampler;
@@ -44,8 +44,7 @@ impl Tracer for Raycast {
             &si,
             wo,
             n_facing,
-            self.light_samples,
-            sampler,
+            area_rotation(scene, self.light_samples, sampler),
             counters,
             rec,
         );

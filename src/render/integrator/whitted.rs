@@ -5,7 +5,7 @@ use super::{Counters, MAX_RAY_TREE, RayKind, Recorder, Tracer, face_forward, int
 use crate::light::Light;
 use crate::math::{Color, Ray, Vec3};
 use crate::render::sampler::PixelSampler;
-use crate::scene::{MaterialKind, Scene, SurfaceInteraction, TraceCounters};
+use crate::scene::{Hit, MaterialKind, Scene, SurfaceInteraction, TraceCounters};
 use crate::shading::{Bsdf, bsdf_at, fresnel_dielectric, reflect, refract};
 
 /// Whitted's recursive ray tracing.
@@ -46,6 +46,16 @@ impl Tracer for Whitted {
     #[inline]
     fn escaped(&self, scene: &Scene, ray: &Ray) -> Color {
         scene.background_le(ray.d)
+    }
+
+    fn trace_stream(
+        &self,
+        scene: &Scene,
+        rays: &[Ray],
+        counters: &mut Counters,
+        out: &mut [Color],
+    ) -> bool {
+        self.stream(scene, rays, counters, out)
     }
 }
 
@@ -120,119 +130,37 @@ impl Whitted {
             rec.end(background, Color::ONE, background);
             return background;
         };
-        let si = scene.surface(ray, &hit);
-        let d = ray.d.normalize();
-        let wo = -d;
-        let front = d.dot(si.n) < 0.0;
-        // The shading normal, on the side of the geometric normal the ray came from.
-        let n_facing = face_forward(si.ns, if front { si.n } else { -si.n });
-        let local = local_shading(
-            scene,
-            &si,
-            wo,
-            n_facing,
-            self.light_samples,
-            sampler,
-            counters,
-            rec,
-        );
+        let at = AtHit::new(scene, ray, &hit);
+        let area = area_rotation(scene, self.light_samples, sampler);
+        let local = local_shading(scene, &at.si, at.wo, at.n_facing, area, counters, rec);
         let mut l = local;
-        let material = &scene.materials[si.material as usize];
-        // Absorption inside a dielectric scales everything this ray returns.
-        let glass = material.glass();
-        let absorption = if !front
-            && let Some((_, absorption)) = glass
-            && absorption != Color::ZERO
-        {
-            Some((-absorption * (hit.t * ray.d.length())).exp())
-        } else {
-            None
-        };
+        let absorption = at.absorption(hit.t * ray.d.length());
         let carried = throughput * absorption.unwrap_or(Color::ONE);
 
         if depth < self.max_depth {
-            // A conductor is a mirror here, of its Fresnel reflectance.
-            let mirror = match material.kind {
-                _ if glass.is_some() => None,
-                MaterialKind::Mirror { reflectance } => Some(reflectance),
-                MaterialKind::Conductor { .. } => match bsdf_at(material, scene.albedo(&si)) {
-                    Bsdf::Conductor { fresnel, .. } => Some(fresnel.eval(wo.dot(n_facing))),
-                    _ => None,
-                },
-                MaterialKind::Principled { metallic, .. } if metallic >= 0.5 => {
-                    Some(scene.albedo(&si))
+            for s in self
+                .secondaries(scene, &at, weight, rec)
+                .into_iter()
+                .flatten()
+            {
+                if !spend(budget) {
+                    continue;
                 }
-                _ => None,
-            };
-            match (mirror, glass) {
-                (None, None) => {}
-                (Some(reflectance), _) => {
-                    let w = weight * reflectance.max_element();
-                    if w >= self.min_weight && spend(budget) {
-                        counters.rays.reflection += 1;
-                        let r = Ray::spawn(si.p, si.p_err, si.n, reflect(d, n_facing));
-                        let t = carried * reflectance;
-                        rec.begin(RayKind::Reflection, &r, t);
-                        l += reflectance
-                            * self.trace_ray(
-                                scene,
-                                &r,
-                                depth + 1,
-                                w,
-                                t,
-                                budget,
-                                sampler,
-                                counters,
-                                rec,
-                            );
-                    }
-                }
-                (None, Some((ior, _))) => {
-                    let (eta_i, eta_t) = if front { (1.0, ior) } else { (ior, 1.0) };
-                    let f = fresnel_dielectric(wo.dot(n_facing), eta_i, eta_t);
-                    rec.fresnel(f.reflectance, f.transmittance);
-                    let w = weight * f.reflectance;
-                    if w >= self.min_weight && spend(budget) {
-                        counters.rays.reflection += 1;
-                        let r = Ray::spawn(si.p, si.p_err, si.n, reflect(d, n_facing));
-                        let t = carried * f.reflectance;
-                        rec.begin(RayKind::Reflection, &r, t);
-                        l += f.reflectance
-                            * self.trace_ray(
-                                scene,
-                                &r,
-                                depth + 1,
-                                w,
-                                t,
-                                budget,
-                                sampler,
-                                counters,
-                                rec,
-                            );
-                    }
-                    let w = weight * f.transmittance;
-                    if w >= self.min_weight
-                        && let Some(dir) = refract(d, n_facing, eta_i / eta_t)
-                        && spend(budget)
-                    {
-                        counters.rays.refraction += 1;
-                        let r = Ray::spawn(si.p, si.p_err, si.n, dir);
-                        let t = carried * f.transmittance;
-                        rec.begin(RayKind::Refraction, &r, t);
-                        l += f.transmittance
-                            * self.trace_ray(
-                                scene,
-                                &r,
-                                depth + 1,
-                                w,
-                                t,
-                                budget,
-                                sampler,
-                                counters,
-                                rec,
-                            );
-                    }
-                }
+                s.count(counters);
+                let t = carried * s.factor;
+                rec.begin(s.kind, &s.ray, t);
+                l += s.factor
+                    * self.trace_ray(
+                        scene,
+                        &s.ray,
+                        depth + 1,
+                        s.weight,
+                        t,
+                        budget,
+                        sampler,
+                        counters,
+                        rec,
+                    );
             }
         }
 
@@ -242,6 +170,138 @@ impl Whitted {
         }
         rec.end(local, absorption.unwrap_or(Color::ONE), l);
         l
+    }
+}
+
+/// A reflected or refracted ray that a hit spawns: the factor its radiance
+/// is multiplied by, and its weight (see [`Whitted::trace_ray`]).
+pub(super) struct Secondary {
+    kind: RayKind,
+    pub factor: Color,
+    pub ray: Ray,
+    pub weight: f32,
+}
+
+impl Secondary {
+    #[inline]
+    pub(super) fn count(&self, counters: &mut Counters) {
+        match self.kind {
+            RayKind::Refraction => counters.rays.refraction += 1,
+            _ => counters.rays.reflection += 1,
+        }
+    }
+}
+
+impl Whitted {
+    /// The rays a hit (reached with weight `weight`) spawns, in the order
+    /// they are traced, if their weight reaches `min_weight`: a mirror's
+    /// reflection (a conductor's, of its Fresnel reflectance), or a
+    /// dielectric's reflection and refraction weighted by Fresnel's `R` and
+    /// `T` (none refracted at total internal reflection).
+    #[inline(always)]
+    pub(super) fn secondaries<R: Recorder>(
+        &self,
+        scene: &Scene,
+        at: &AtHit,
+        weight: f32,
+        rec: &mut R,
+    ) -> [Option<Secondary>; 2] {
+        let (si, d, wo, n_facing) = (&at.si, at.d, at.wo, at.n_facing);
+        let material = &scene.materials[si.material as usize];
+        // A conductor is a mirror here, of its Fresnel reflectance.
+        let mirror = match material.kind {
+            _ if at.glass.is_some() => None,
+            MaterialKind::Mirror { reflectance } => Some(reflectance),
+            MaterialKind::Conductor { .. } => match bsdf_at(material, scene.albedo(si)) {
+                Bsdf::Conductor { fresnel, .. } => Some(fresnel.eval(wo.dot(n_facing))),
+                _ => None,
+            },
+            MaterialKind::Principled { metallic, .. } if metallic >= 0.5 => Some(scene.albedo(si)),
+            _ => None,
+        };
+        let reflected = |factor: Color, w: f32| {
+            (w >= self.min_weight).then(|| Secondary {
+                kind: RayKind::Reflection,
+                factor,
+                ray: Ray::spawn(si.p, si.p_err, si.n, reflect(d, n_facing)),
+                weight: w,
+            })
+        };
+        match (mirror, at.glass) {
+            (None, None) => [None, None],
+            (Some(reflectance), _) => [
+                reflected(reflectance, weight * reflectance.max_element()),
+                None,
+            ],
+            (None, Some((ior, _))) => {
+                let (eta_i, eta_t) = if at.front { (1.0, ior) } else { (ior, 1.0) };
+                let f = fresnel_dielectric(wo.dot(n_facing), eta_i, eta_t);
+                rec.fresnel(f.reflectance, f.transmittance);
+                let w = weight * f.transmittance;
+                let refracted = if w >= self.min_weight
+                    && let Some(dir) = refract(d, n_facing, eta_i / eta_t)
+                {
+                    Some(Secondary {
+                        kind: RayKind::Refraction,
+                        factor: Color::splat(f.transmittance),
+                        ray: Ray::spawn(si.p, si.p_err, si.n, dir),
+                        weight: w,
+                    })
+                } else {
+                    None
+                };
+                [
+                    reflected(Color::splat(f.reflectance), weight * f.reflectance),
+                    refracted,
+                ]
+            }
+        }
+    }
+}
+
+/// A ray's hit as shading sees it.
+pub(super) struct AtHit {
+    pub si: SurfaceInteraction,
+    /// The ray's unit direction.
+    pub d: Vec3,
+    /// `−d`: towards where the ray came from.
+    pub wo: Vec3,
+    /// Whether the ray met the front of the surface (against its normal).
+    pub front: bool,
+    /// The shading normal, on the side of the geometric normal the ray came from.
+    pub n_facing: Vec3,
+    /// The material's index of refraction and absorption, if Whitted's
+    /// model treats it as glass.
+    pub glass: Option<(f32, Color)>,
+}
+
+impl AtHit {
+    #[inline]
+    pub fn new(scene: &Scene, ray: &Ray, hit: &Hit) -> AtHit {
+        let si = scene.surface(ray, hit);
+        let d = ray.d.normalize();
+        let front = d.dot(si.n) < 0.0;
+        AtHit {
+            glass: scene.materials[si.material as usize].glass(),
+            n_facing: face_forward(si.ns, if front { si.n } else { -si.n }),
+            si,
+            d,
+            wo: -d,
+            front,
+        }
+    }
+
+    /// The attenuation of light that travelled `length` inside an absorbing
+    /// dielectric to reach this back face, `exp(−σ·length)`; `None` where
+    /// nothing is absorbed.
+    #[inline]
+    pub(super) fn absorption(&self, length: f32) -> Option<Color> {
+        match self.glass {
+            Some((_, absorption)) if !self.front && absorption != Color::ZERO => {
+                Some((-absorption * length).exp())
+            }
+            _ => None,
+        }
     }
 }
 
@@ -260,17 +320,85 @@ impl Whitted {
 /// sample (see [`lattice_point`]). For a small light of radiance
 /// `L` and area `A` this is the point light of intensity `L·A`. An emitting
 /// surface adds its own emission.
-#[allow(clippy::too_many_arguments)]
 #[inline]
 pub(super) fn local_shading<R: Recorder>(
     scene: &Scene,
     si: &SurfaceInteraction,
     wo: Vec3,
     n_facing: Vec3,
-    light_samples: u32,
-    sampler: &mut PixelSampler,
+    area: Option<(u32, [f32; 3])>,
     counters: &mut Counters,
     rec: &mut R,
+) -> Color {
+    local_terms(scene, si, wo, n_facing, area, |l, term| {
+        counters.rays.shadow += 1;
+        let visibility = transmittance(scene, &term.ray, &mut counters.trace);
+        if visibility == Color::ZERO {
+            if R::BLOCKERS {
+                // The nearest object on the segment; opaque, as it stopped the ray.
+                let mut scratch = TraceCounters::default();
+                let blocker = scene.intersect(&term.ray, &mut scratch);
+                rec.shadow(
+                    scene,
+                    term.light,
+                    &term.ray,
+                    visibility,
+                    blocker.as_ref(),
+                    Color::ZERO,
+                );
+            }
+            return;
+        }
+        let radiance = term.radiance(visibility);
+        rec.shadow(scene, term.light, &term.ray, visibility, None, radiance);
+        *l += radiance;
+    })
+}
+
+/// The random rotation of the area lights' lattice for a sample, if it
+/// has area lights to sample (see [`local_shading`]).
+#[inline]
+pub(super) fn area_rotation(
+    scene: &Scene,
+    light_samples: u32,
+    sampler: &mut PixelSampler,
+) -> Option<(u32, [f32; 3])> {
+    (light_samples > 0 && !scene.emitters.area_select.is_empty()).then(|| {
+        let (r0, r1) = sampler.next_2d();
+        (light_samples, [r0, r1, sampler.next_1d()])
+    })
+}
+
+/// One shadow ray of the local terms, with what it brings if unblocked.
+pub(super) struct LightTerm {
+    pub light: usize,
+    pub ray: Ray,
+    irradiance: Color,
+    reflected: Color,
+}
+
+impl LightTerm {
+    /// The term's radiance through the shadow ray's transmittance
+    /// `visibility`: `V·E·(k_d·C·(N·L) + k_s·(N·H)^n)`.
+    #[inline]
+    pub fn radiance(&self, visibility: Color) -> Color {
+        visibility * self.irradiance * self.reflected
+    }
+}
+
+/// [`local_shading`] up to the shadow rays: returns the terms that need no
+/// shadow ray (ambient and emission), and calls `each(l, term)` with the
+/// light samples that face the surface, in order, for the caller to trace
+/// their shadow rays and add their radiance to `l`. `area` is the count
+/// of area-light samples and the lattice rotation (see [`area_rotation`]).
+#[inline(always)]
+pub(super) fn local_terms(
+    scene: &Scene,
+    si: &SurfaceInteraction,
+    wo: Vec3,
+    n_facing: Vec3,
+    area: Option<(u32, [f32; 3])>,
+    mut each: impl FnMut(&mut Color, LightTerm),
 ) -> Color {
     let m = &scene.materials[si.material as usize];
     let albedo = scene.albedo(si);
@@ -282,10 +410,6 @@ pub(super) fn local_shading<R: Recorder>(
         return l;
     }
     let emitters = &scene.emitters;
-    let area = (light_samples > 0 && !emitters.area_select.is_empty()).then(|| {
-        let (r0, r1) = sampler.next_2d();
-        (light_samples, [r0, r1, sampler.next_1d()])
-    });
     let samples = emitters
         .delta_lights
         .iter()
@@ -320,32 +444,20 @@ pub(super) fn local_shading<R: Recorder>(
         if cos <= 0.0 {
             continue;
         }
-        counters.rays.shadow += 1;
-        let visibility = transmittance(scene, &shadow_ray, &mut counters.trace);
-        if visibility == Color::ZERO {
-            if R::BLOCKERS {
-                // The nearest object on the segment; opaque, as it stopped the ray.
-                let mut scratch = TraceCounters::default();
-                let blocker = scene.intersect(&shadow_ray, &mut scratch);
-                rec.shadow(
-                    scene,
-                    index,
-                    &shadow_ray,
-                    visibility,
-                    blocker.as_ref(),
-                    Color::ZERO,
-                );
-            }
-            continue;
-        }
         let mut reflected = m.diffuse * cos * albedo;
         if m.specular > 0.0 {
             let h = (wi + wo).normalize_or_zero();
             reflected += m.specular * highlight(n_facing.dot(h).max(0.0), m.shininess);
         }
-        let term = visibility * irradiance * reflected;
-        rec.shadow(scene, index, &shadow_ray, visibility, None, term);
-        l += term;
+        each(
+            &mut l,
+            LightTerm {
+                light: index,
+                ray: shadow_ray,
+                irradiance,
+                reflected,
+            },
+        );
     }
     l
 }
@@ -401,23 +513,37 @@ fn lattice_point(j: u32, n: u32, rot: [f32; 3]) -> (f32, f32, f32) {
 pub fn transmittance(scene: &Scene, ray: &Ray, counters: &mut TraceCounters) -> Color {
     let mut tr = Color::ONE;
     let blocked = scene.visit_segment(ray, counters, |i, counters| {
-        let object = &scene.objects[i as usize];
         if scene.is_opaque(i) {
-            return object.shape.occludes(ray, counters);
+            return scene.objects[i as usize].shape.occludes(ray, counters);
         }
-        if let Some((ior, absorption)) = scene.materials[object.material as usize].glass() {
-            let mut passed = 1.0f32;
-            let inside = object.shape.crossings(ray, counters, &mut |cos| {
-                passed *= fresnel_dielectric(cos, 1.0, ior).transmittance;
-            });
-            tr *= passed;
-            if inside > 0.0 && absorption != Color::ZERO {
-                tr *= (-absorption * inside).exp();
-            }
-        }
+        through_glass(scene, i, ray, counters, &mut tr);
         false
     });
     if blocked { Color::ZERO } else { tr }
+}
+
+/// [`transmittance`]'s factors for object `i`, a dielectric the shadow ray
+/// passes through: `tr` is multiplied by the Fresnel transmittance of each
+/// crossing (together), then by the absorption inside.
+#[inline]
+pub(super) fn through_glass(
+    scene: &Scene,
+    i: u32,
+    ray: &Ray,
+    counters: &mut TraceCounters,
+    tr: &mut Color,
+) {
+    let object = &scene.objects[i as usize];
+    if let Some((ior, absorption)) = scene.materials[object.material as usize].glass() {
+        let mut passed = 1.0f32;
+        let inside = object.shape.crossings(ray, counters, &mut |cos| {
+            passed *= fresnel_dielectric(cos, 1.0, ior).transmittance;
+        });
+        *tr *= passed;
+        if inside > 0.0 && absorption != Color::ZERO {
+            *tr *= (-absorption * inside).exp();
+        }
+    }
 }
 
 #[cfg(test)]

@@ -1,0 +1,207 @@
+//! Whitted's integrator traces scenes of spheres, planes and boxes many
+//! camera rays at a time (breadth first, in SIMD batches). These tests
+//! render scenes both ways, the other way being the integrator one ray at
+//! a time (depth first), and ask for the same image bit for bit and the
+//! same counts.
+
+use glint::math::{Color, Ray};
+use glint::render::{AnyIntegrator, Counters, Integrator, PixelSampler, RenderStats, render_with};
+use glint::scene::{BUILTIN_WHITTED, Scene, parse_scene};
+use glint::settings::{IntegratorKind, RenderSettings};
+use std::path::Path;
+
+/// The integrator, one camera ray at a time (it never streams).
+struct OneByOne(AnyIntegrator);
+
+impl Integrator for OneByOne {
+    fn radiance(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+    ) -> Color {
+        self.0.radiance(scene, ray, sampler, counters)
+    }
+
+    fn escaped(&self, scene: &Scene, ray: &Ray) -> Option<Color> {
+        Integrator::escaped(&self.0, scene, ray)
+    }
+}
+
+/// The counts of a render, without its times.
+fn counts(s: &RenderStats) -> String {
+    let mut s = s.clone();
+    s.seconds_render = 0.0;
+    s.rays_per_second = 0.0;
+    s.samples_per_second = 0.0;
+    format!("{s:?}")
+}
+
+/// Renders `text` (a scene file) both ways and compares; returns whether
+/// it streamed.
+fn same_both_ways(text: &str, width: u32, height: u32, spp: u32, max_depth: i32) -> bool {
+    let file = parse_scene(text, Path::new("stream.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let settings = RenderSettings {
+        width,
+        height,
+        spp,
+        max_depth,
+        integrator: IntegratorKind::Whitted,
+        ..file.settings.clone()
+    };
+    let integrator = AnyIntegrator::new(&settings);
+    let streams = match integrator {
+        AnyIntegrator::Whitted(w) => w.streams(&file.scene),
+        _ => unreachable!(),
+    };
+    let options = Default::default();
+    let (streamed, a) =
+        render_with(&file.scene, &settings, &integrator, &options, &|_| {}).expect("renders");
+    let (one, b) = render_with(
+        &file.scene,
+        &settings,
+        &OneByOne(integrator),
+        &options,
+        &|_| {},
+    )
+    .expect("renders");
+    for (k, (x, y)) in streamed
+        .image
+        .pixels
+        .iter()
+        .zip(&one.image.pixels)
+        .enumerate()
+    {
+        assert_eq!(
+            x.to_array().map(f32::to_bits),
+            y.to_array().map(f32::to_bits),
+            "pixel {} of {width}×{height}: {x} streamed, {y} one by one",
+            k
+        );
+    }
+    assert_eq!(counts(&a), counts(&b));
+    streams
+}
+
+#[test]
+fn whitted_scene_streams_to_the_same_image() {
+    assert!(same_both_ways(BUILTIN_WHITTED, 96, 64, 1, 8));
+    // Several samples per pixel: a tile's samples are streamed together,
+    // and past 16 per pixel, a pixel's 64 at a time.
+    assert!(same_both_ways(BUILTIN_WHITTED, 40, 30, 5, 8));
+    assert!(same_both_ways(BUILTIN_WHITTED, 12, 8, 70, 8));
+    // Depths where rays are cut by depth, and the deepest that streams.
+    assert!(same_both_ways(BUILTIN_WHITTED, 48, 32, 1, 0));
+    assert!(same_both_ways(BUILTIN_WHITTED, 48, 32, 1, 2));
+    assert!(same_both_ways(BUILTIN_WHITTED, 48, 32, 1, 9));
+    // Deeper trees may be cut by the ray budget, in depth-first order:
+    // those are traced one by one.
+    assert!(!same_both_ways(BUILTIN_WHITTED, 24, 16, 1, 10));
+}
+
+/// Every material and light kind the integrator knows, on spheres, planes
+/// and boxes, with absorbing glass and the camera close to the glass.
+const MIXED: &str = r#"
+[camera]
+position = [0.4, 1.2, -3.2]
+look_at = [0, 0.6, 0]
+up = [0, 1, 0]
+fov = 60
+
+[render]
+width = 64
+height = 48
+integrator = "whitted"
+max_depth = 6
+min_weight = 1e-4
+light_samples = 0                 # the glowing sphere is seen, not sampled
+background = [0.1, 0.2, 0.5]
+ambient = [0.2, 0.2, 0.2]
+
+[materials]
+checks = { type = "diffuse", texture = { checker = [[0.9, 0.9, 0.9], [0.2, 0.3, 0.8]], scale = 0.5 }, ambient = 0.1 }
+mirror = { type = "mirror", reflectance = [0.9, 0.8, 0.7], specular = 0.5, shininess = 50 }
+glass = { type = "dielectric", ior = 1.5, absorption = [0.5, 0.1, 0.05], specular = 0.9, shininess = 500 }
+clear = { type = "dielectric", ior = 1.33 }
+gold = { type = "conductor", metal = "Au", specular = 0.6, shininess = 40 }
+steel = { type = "principled", color = [0.8, 0.8, 0.85], metallic = 1.0 }
+pglass = { type = "principled", color = [1, 1, 1], transmission = 1.0, ior = 1.4 }
+glow = { type = "diffuse", color = [1, 1, 1], emission = [2, 1.5, 1] }
+
+[[light]]
+type = "point"
+position = [2, 4, -3]
+intensity = 30
+
+[[light]]
+type = "directional"
+direction = [-0.3, -1, 0.4]
+irradiance = 0.8
+
+[[light]]
+type = "point"
+position = [-2, 3, -1]
+intensity = [20, 10, 5]
+
+[[object]]
+shape = "plane"
+point = [0, 0, 0]
+normal = [0, 1, 0]
+material = "checks"
+
+[[object]]
+shape = "box"
+min = [0.6, 0, 0.2]
+max = [1.4, 0.8, 1.0]
+material = "clear"
+
+[[object]]
+shape = "sphere"
+center = [-0.8, 0.6, 0.5]
+radius = 0.6
+material = "mirror"
+
+[[object]]
+shape = "sphere"
+center = [0.2, 0.7, -1.6]
+radius = 0.7
+material = "glass"
+
+[[object]]
+shape = "sphere"
+center = [1.5, 0.3, -0.8]
+radius = 0.3
+material = "gold"
+
+[[object]]
+shape = "box"
+min = [-1.8, 0, -1.5]
+max = [-1.2, 0.4, -0.9]
+material = "steel"
+
+[[object]]
+shape = "sphere"
+center = [-0.2, 0.25, -2.2]
+radius = 0.25
+material = "pglass"
+
+[[object]]
+shape = "sphere"
+center = [0, 2.5, 2]
+radius = 0.3
+material = "glow"
+"#;
+
+#[test]
+fn mixed_scene_streams_to_the_same_image() {
+    assert!(same_both_ways(MIXED, 64, 48, 1, 6));
+    assert!(same_both_ways(MIXED, 32, 24, 3, 9));
+}
+
+#[test]
+fn scenes_it_cannot_stream_are_traced_one_by_one() {
+    // Area lights sampled with random numbers: not streamed, the same image.
+    let area = MIXED.replace("light_samples = 0", "light_samples = 4");
+    assert!(!same_both_ways(&area, 32, 24, 1, 4));
+}
