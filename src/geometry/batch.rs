@@ -91,7 +91,7 @@ impl Closest {
 /// `t ∈ [t_min, t_max)`, as [`Ray::contains`].
 #[inline(always)]
 fn contains(t: f32, t_min: f32, t_max: f32) -> bool {
-    t >= t_min && t < t_max
+    (t >= t_min) & (t < t_max)
 }
 
 impl Sphere {
@@ -134,7 +134,7 @@ impl Sphere {
         let (in0, in1) = (contains(t0, t_min, t_max), contains(t1, t_min, t_max));
         // Where the line misses (Δ < 0), √Δ is NaN and so are both roots,
         // which no segment contains: no test of Δ is needed.
-        (in0 || in1, if in0 { t0 } else { t1 })
+        (in0 | in1, if in0 { t0 } else { t1 })
     }
 
     /// [`Sphere::intersect`] for every ray of the batch, keeping the closer
@@ -165,7 +165,7 @@ impl Plane {
         let denom = rays.d[0][j] * n.x + rays.d[1][j] * n.y + rays.d[2][j] * n.z;
         let rel = [p.x - rays.o[0][j], p.y - rays.o[1][j], p.z - rays.o[2][j]];
         let t = (rel[0] * n.x + rel[1] * n.y + rel[2] * n.z) / denom;
-        (denom != 0.0 && contains(t, rays.t_min[j], t_max), t)
+        ((denom != 0.0) & contains(t, rays.t_min[j], t_max), t)
     }
 
     /// [`Plane::intersect`] for every ray of the batch (see
@@ -215,14 +215,14 @@ impl Cuboid {
             t_exit = if exits { t_far } else { t_exit };
             axis_exit = if exits { i as u32 } else { axis_exit };
         }
-        let slab = t_enter < t_exit && t_exit >= 0.0;
+        let slab = (t_enter < t_exit) & (t_exit >= 0.0);
         let t_min = rays.t_min[j];
         let (enter, exit) = (
             contains(t_enter, t_min, t_max),
             contains(t_exit, t_min, t_max),
         );
         (
-            slab && (enter || exit),
+            slab & (enter | exit),
             if enter { t_enter } else { t_exit },
             if enter { axis_enter } else { 3 + axis_exit },
         )

@@ -576,21 +576,28 @@ fn stream_tile<I: Integrator>(
     counters: &mut Counters,
 ) -> Option<Vec<Color>> {
     const CHUNK: usize = 1024;
+    thread_local! {
+        // The camera rays of a chunk (kept: a fresh array per tile costs
+        // more than a Whitted tile's shading).
+        static RAYS: std::cell::RefCell<Vec<Ray>> = const { std::cell::RefCell::new(Vec::new()) };
+    }
     let samples = settings.samples();
     let (width, height) = (settings.width, settings.height);
     let mut points = Vec::with_capacity(CHUNK);
-    let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); CHUNK];
     let pixels = tile.rows.iter().map(|r| r.len()).sum::<usize>();
     let mut out = vec![Color::ZERO; pixels * samples.count as usize];
     let mut done = 0;
     let mut trace = |points: &mut Vec<(f32, f32)>, done: &mut usize| {
         let n = points.len();
-        scene.camera.rays(points, width, height, &mut rays[..n]);
-        points.clear();
-        let ok =
-            integrator.radiance_stream(scene, &rays[..n], counters, &mut out[*done..*done + n]);
-        *done += n;
-        ok
+        RAYS.with_borrow_mut(|rays| {
+            rays.resize(CHUNK, Ray::new(Vec3::ZERO, Vec3::X));
+            scene.camera.rays(points, width, height, &mut rays[..n]);
+            points.clear();
+            let ok =
+                integrator.radiance_stream(scene, &rays[..n], counters, &mut out[*done..*done + n]);
+            *done += n;
+            ok
+        })
     };
     for (dy, row) in tile.rows.iter().enumerate() {
         let y = tile.y0 + dy as u32;
