@@ -660,7 +660,7 @@ fn render_tile<I: Integrator>(
     // (with at most `STREAM_SPP` samples per pixel), else a pixel's samples
     // `RAYS` at a time; the first refusal stops the asking. Output
     // variables need each pixel's own counts: not then.
-    let mut streaming = !missed && tile.aovs.is_empty();
+    let mut streaming = !missed && tile.aovs.is_empty() && integrator.streams(scene);
     let mut streamed = [Color::ZERO; RAYS];
     let tile_streamed = if streaming && samples.count <= STREAM_SPP {
         let out = stream_tile(scene, integrator, tile, settings, &mut counters);

@@ -142,7 +142,11 @@ fn unit_f32(x: u32) -> f32 {
 /// (0, m, 2)-net in each pair of dimensions: well stratified at every count.
 #[derive(Clone, Debug)]
 pub struct PixelSampler {
-    seed: u64,
+    /// The pixel's coordinates, packed (see [`pixel_key`]).
+    key: u64,
+    /// Its seed, hashed from `key` when first needed (many integrators
+    /// never draw a number: ray casting with point lights).
+    seed: Option<u64>,
     index: u32,
     /// `index` bit-reversed, shared by every pair.
     reversed: u32,
@@ -154,7 +158,8 @@ impl PixelSampler {
     /// The sampler of sample `index` of pixel `(x, y)`.
     pub fn new(x: u32, y: u32, index: u32) -> Self {
         PixelSampler {
-            seed: pixel_seed(x, y),
+            key: pixel_key(x, y),
+            seed: None,
             index,
             reversed: index.reverse_bits(),
             pair: 1,
@@ -164,7 +169,7 @@ impl PixelSampler {
     /// Where in the pixel the sample lies (see [`PixelSamples::offset`]).
     /// To take many samples of one pixel, [`PixelSamples`] is faster.
     pub fn pixel_offset(&self) -> (f32, f32) {
-        PixelSamples::from_seed(self.seed).offset(self.index)
+        PixelSamples::from_key(self.key).offset(self.index)
     }
 
     /// The next two dimensions, in [0, 1)².
@@ -172,7 +177,9 @@ impl PixelSampler {
     pub fn next_2d(&mut self) -> (f32, f32) {
         // The pair's three scrambles from one 64-bit hash (the pixel offset's
         // pair, in `PixelSamples`, keeps its own three).
-        let h = mix64(self.seed ^ (self.pair as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        let key = self.key;
+        let seed = *self.seed.get_or_insert_with(|| mix64(key));
+        let h = mix64(seed ^ (self.pair as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
         let seeds = [
             h as u32,
             (h >> 32) as u32,
@@ -195,19 +202,20 @@ impl PixelSampler {
 /// asked for: one sample per pixel costs nothing).
 #[derive(Clone, Copy, Debug)]
 pub struct PixelSamples {
-    seed: u64,
+    /// The pixel's coordinates, packed (see [`pixel_key`]).
+    key: u64,
     /// The scrambles and the shift, once computed.
     scrambles: Option<([u32; 3], (u32, u32))>,
 }
 
 impl PixelSamples {
     pub fn new(x: u32, y: u32) -> Self {
-        PixelSamples::from_seed(pixel_seed(x, y))
+        PixelSamples::from_key(pixel_key(x, y))
     }
 
-    fn from_seed(seed: u64) -> Self {
+    fn from_key(key: u64) -> Self {
         PixelSamples {
-            seed,
+            key,
             scrambles: None,
         }
     }
@@ -223,9 +231,9 @@ impl PixelSamples {
             // What the shift makes of sample 0, without computing it.
             return (0.5, 0.5);
         }
-        let seed = self.seed;
+        let key = self.key;
         let (scrambles, shift) = *self.scrambles.get_or_insert_with(|| {
-            let scrambles = pair_seeds(seed, 0);
+            let scrambles = pair_seeds(mix64(key), 0);
             let (a0, b0) = pair_bits(&scrambles, 0);
             let half = 1u32 << 31;
             (scrambles, (a0 ^ half, b0 ^ half))
@@ -238,7 +246,8 @@ impl PixelSamples {
     /// offset.
     pub fn sampler(&self, index: u32) -> PixelSampler {
         PixelSampler {
-            seed: self.seed,
+            key: self.key,
+            seed: None,
             index,
             reversed: index.reverse_bits(),
             pair: 1,
@@ -246,10 +255,16 @@ impl PixelSamples {
     }
 }
 
-/// The seed of pixel `(x, y)`.
+/// Pixel `(x, y)` as one number, whose hash is its seed.
 #[inline]
+fn pixel_key(x: u32, y: u32) -> u64 {
+    ((y as u64) << 32) | x as u64
+}
+
+/// The seed of pixel `(x, y)`.
+#[cfg(test)]
 fn pixel_seed(x: u32, y: u32) -> u64 {
-    mix64(((y as u64) << 32) | x as u64)
+    mix64(pixel_key(x, y))
 }
 
 /// The scrambles of dimension pair `pair` of a pixel: the two coordinates'

@@ -57,6 +57,13 @@ pub trait Integrator: Sync {
         None
     }
 
+    /// Whether [`Integrator::radiance_stream`] traces `scene`'s camera rays
+    /// (false by default).
+    fn streams(&self, scene: &Scene) -> bool {
+        let _ = scene;
+        false
+    }
+
     /// The radiance of each camera ray of `rays` into `out`, exactly as
     /// [`Integrator::radiance`] gives it, for integrators that can trace
     /// many rays at once in `scene` (without random numbers); returns false,
@@ -106,6 +113,12 @@ pub trait Tracer: Sync {
     /// [`Tracer::trace`] returns for it, computed by the same code.
     fn escaped(&self, scene: &Scene, ray: &Ray) -> Color;
 
+    /// See [`Integrator::streams`].
+    fn streams(&self, scene: &Scene) -> bool {
+        let _ = scene;
+        false
+    }
+
     /// See [`Integrator::radiance_stream`].
     fn trace_stream(
         &self,
@@ -145,6 +158,11 @@ impl<T: Tracer> Integrator for T {
         tree: &mut RayTree,
     ) -> Color {
         self.trace(scene, ray, sampler, counters, tree)
+    }
+
+    #[inline]
+    fn streams(&self, scene: &Scene) -> bool {
+        Tracer::streams(self, scene)
     }
 
     #[inline]
@@ -210,6 +228,13 @@ impl Tracer for AnyIntegrator {
             AnyIntegrator::Raycast(i) => Tracer::escaped(i, scene, ray),
             AnyIntegrator::Whitted(i) => Tracer::escaped(i, scene, ray),
             AnyIntegrator::Path(i) => Tracer::escaped(i, scene, ray),
+        }
+    }
+
+    fn streams(&self, scene: &Scene) -> bool {
+        match self {
+            AnyIntegrator::Whitted(i) => i.streams(scene),
+            _ => false,
         }
     }
 

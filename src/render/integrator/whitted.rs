@@ -48,6 +48,10 @@ impl Tracer for Whitted {
         scene.background_le(ray.d)
     }
 
+    fn streams(&self, scene: &Scene) -> bool {
+        Whitted::streams(self, scene)
+    }
+
     fn trace_stream(
         &self,
         scene: &Scene,
