@@ -1,6 +1,6 @@
 //! Textures: what colour a surface has at a point.
 
-use crate::math::{Color, Vec3};
+use crate::math::{Color, Vec3, floor};
 use glam::Vec2;
 
 /// Scene file: `color = [r, g, b]` or
@@ -49,8 +49,8 @@ impl Texture {
                     CheckerMode::Solid => None,
                 };
                 let cells = match planar {
-                    Some(uv) => (uv / scale).floor().element_sum(),
-                    None => (p / scale).floor().element_sum(),
+                    Some(uv) => (uv / scale).map(floor).element_sum(),
+                    None => (p / scale).map(floor).element_sum(),
                 };
                 if is_even(cells) { even } else { odd }
             }
@@ -63,7 +63,7 @@ impl Texture {
 /// NaN), without the slow `fmodf` it calls.
 #[inline]
 fn is_even(cells: f32) -> bool {
-    cells.is_finite() && (cells * 0.5).floor() * 2.0 == cells
+    cells.is_finite() && floor(cells * 0.5) * 2.0 == cells
 }
 
 #[cfg(test)]
