@@ -202,7 +202,7 @@ impl Whitted {
     /// reflection (a conductor's, of its Fresnel reflectance), or a
     /// dielectric's reflection and refraction weighted by Fresnel's `R` and
     /// `T` (none refracted at total internal reflection).
-    #[inline(always)]
+    #[inline(never)]
     pub(super) fn secondaries<R: Recorder>(
         &self,
         scene: &Scene,
@@ -378,7 +378,13 @@ pub(super) struct LightTerm {
     pub light: usize,
     pub ray: Ray,
     irradiance: Color,
-    reflected: Color,
+    /// `k_d·C·(N·L)`.
+    diffuse: Color,
+    /// `k_s`, `N·H` (clamped to 0) and `n` of the highlight, raised to the
+    /// power only for unblocked shadow rays (`powf` is the costly part).
+    specular: f32,
+    n_dot_h: f32,
+    shininess: f32,
 }
 
 impl LightTerm {
@@ -386,7 +392,11 @@ impl LightTerm {
     /// `visibility`: `V·E·(k_d·C·(N·L) + k_s·(N·H)^n)`.
     #[inline]
     pub fn radiance(&self, visibility: Color) -> Color {
-        visibility * self.irradiance * self.reflected
+        let mut reflected = self.diffuse;
+        if self.specular > 0.0 {
+            reflected += self.specular * highlight(self.n_dot_h, self.shininess);
+        }
+        visibility * self.irradiance * reflected
     }
 }
 
@@ -448,18 +458,22 @@ pub(super) fn local_terms(
         if cos <= 0.0 {
             continue;
         }
-        let mut reflected = m.diffuse * cos * albedo;
-        if m.specular > 0.0 {
+        let n_dot_h = if m.specular > 0.0 {
             let h = (wi + wo).normalize_or_zero();
-            reflected += m.specular * highlight(n_facing.dot(h).max(0.0), m.shininess);
-        }
+            n_facing.dot(h).max(0.0)
+        } else {
+            0.0
+        };
         each(
             &mut l,
             LightTerm {
                 light: index,
                 ray: shadow_ray,
                 irradiance,
-                reflected,
+                diffuse: m.diffuse * cos * albedo,
+                specular: m.specular,
+                n_dot_h,
+                shininess: m.shininess,
             },
         );
     }
