@@ -94,12 +94,46 @@ fn contains(t: f32, t_min: f32, t_max: f32) -> bool {
     (t >= t_min) & (t < t_max)
 }
 
-impl Sphere {
-    /// Lane `j`'s hit as [`Sphere::intersect`] finds it (the ray's segment
-    /// ending at `t_max`): `(hit, t)`. The same operations as
-    /// [`Sphere::roots`], with selects for its early returns.
+/// A shape with a one-lane test for the batch tests: lane `j`'s hit as the
+/// shape's `intersect` finds it on the ray's segment ending at `t_max`,
+/// `(hit, t, prim)` (`t` and `prim` meaningless without a hit), in
+/// straight-line code the compiler can run on many lanes at once.
+pub trait Lanes {
+    fn lane(&self, rays: &RayBatch, j: usize, t_max: f32) -> (bool, f32, u32);
+}
+
+impl<T: Lanes + ?Sized> Lanes for &T {
     #[inline(always)]
-    fn lane(&self, rays: &RayBatch, j: usize, t_max: f32) -> (bool, f32) {
+    fn lane(&self, rays: &RayBatch, j: usize, t_max: f32) -> (bool, f32, u32) {
+        (**self).lane(rays, j, t_max)
+    }
+}
+
+/// The shape's `intersect` for every ray of the batch, keeping the closer
+/// of its hit and `best`'s (which it updates for object `object`).
+#[inline(always)]
+pub fn closest_batch(shape: &impl Lanes, rays: &RayBatch, best: &mut Closest, object: u32) {
+    for j in 0..rays.groups() * GROUP {
+        let (hit, t, prim) = shape.lane(rays, j, best.t[j]);
+        best.t[j] = if hit { t } else { best.t[j] };
+        best.object[j] = if hit { object } else { best.object[j] };
+        best.prim[j] = if hit { prim } else { best.prim[j] };
+    }
+}
+
+/// [`Shape::occludes`](super::Shape::occludes) for every ray of the batch.
+#[inline(always)]
+pub fn any_batch(shape: &impl Lanes, rays: &RayBatch, hit: &mut [bool; BATCH]) {
+    for (j, h) in hit[..rays.groups() * GROUP].iter_mut().enumerate() {
+        *h = shape.lane(rays, j, rays.t_max[j]).0;
+    }
+}
+
+impl Lanes for Sphere {
+    /// The same operations as [`Sphere::roots`] and [`Sphere::intersect`],
+    /// with selects for their early returns.
+    #[inline(always)]
+    fn lane(&self, rays: &RayBatch, j: usize, t_max: f32) -> (bool, f32, u32) {
         let (c, r) = (self.center.as_dvec3(), self.radius as f64);
         let f = [
             rays.o[0][j] as f64 - c.x,
@@ -134,64 +168,25 @@ impl Sphere {
         let (in0, in1) = (contains(t0, t_min, t_max), contains(t1, t_min, t_max));
         // Where the line misses (Δ < 0), √Δ is NaN and so are both roots,
         // which no segment contains: no test of Δ is needed.
-        (in0 | in1, if in0 { t0 } else { t1 })
-    }
-
-    /// [`Sphere::intersect`] for every ray of the batch, keeping the closer
-    /// of its hit and `best`'s (which it updates for object `object`).
-    #[inline(always)]
-    pub fn closest_batch(&self, rays: &RayBatch, best: &mut Closest, object: u32) {
-        for j in 0..rays.groups() * GROUP {
-            let (hit, t) = self.lane(rays, j, best.t[j]);
-            best.t[j] = if hit { t } else { best.t[j] };
-            best.object[j] = if hit { object } else { best.object[j] };
-            best.prim[j] = if hit { 0 } else { best.prim[j] };
-        }
-    }
-
-    /// [`Shape::occludes`](super::Shape::occludes) for every ray of the batch.
-    #[inline(always)]
-    pub fn any_batch(&self, rays: &RayBatch, hit: &mut [bool; BATCH]) {
-        for (j, h) in hit[..rays.groups() * GROUP].iter_mut().enumerate() {
-            *h = self.lane(rays, j, rays.t_max[j]).0;
-        }
+        (in0 | in1, if in0 { t0 } else { t1 }, 0)
     }
 }
 
-impl Plane {
+impl Lanes for Plane {
+    /// The same operations as [`Plane::intersect`].
     #[inline(always)]
-    fn lane(&self, rays: &RayBatch, j: usize, t_max: f32) -> (bool, f32) {
+    fn lane(&self, rays: &RayBatch, j: usize, t_max: f32) -> (bool, f32, u32) {
         let (p, n) = (self.point, self.normal);
         let denom = rays.d[0][j] * n.x + rays.d[1][j] * n.y + rays.d[2][j] * n.z;
         let rel = [p.x - rays.o[0][j], p.y - rays.o[1][j], p.z - rays.o[2][j]];
         let t = (rel[0] * n.x + rel[1] * n.y + rel[2] * n.z) / denom;
-        ((denom != 0.0) & contains(t, rays.t_min[j], t_max), t)
-    }
-
-    /// [`Plane::intersect`] for every ray of the batch (see
-    /// [`Sphere::closest_batch`]).
-    #[inline(always)]
-    pub fn closest_batch(&self, rays: &RayBatch, best: &mut Closest, object: u32) {
-        for j in 0..rays.groups() * GROUP {
-            let (hit, t) = self.lane(rays, j, best.t[j]);
-            best.t[j] = if hit { t } else { best.t[j] };
-            best.object[j] = if hit { object } else { best.object[j] };
-            best.prim[j] = if hit { 0 } else { best.prim[j] };
-        }
-    }
-
-    /// [`Shape::occludes`](super::Shape::occludes) for every ray of the batch.
-    #[inline(always)]
-    pub fn any_batch(&self, rays: &RayBatch, hit: &mut [bool; BATCH]) {
-        for (j, h) in hit[..rays.groups() * GROUP].iter_mut().enumerate() {
-            *h = self.lane(rays, j, rays.t_max[j]).0;
-        }
+        ((denom != 0.0) & contains(t, rays.t_min[j], t_max), t, 0)
     }
 }
 
-impl Cuboid {
-    /// [`Cuboid::intersect`] in lane `j`: `(hit, t, prim)`, by the slab
-    /// test of [`crate::math::Aabb::slab`] with selects.
+impl Lanes for Cuboid {
+    /// [`Cuboid::intersect`]: the slab test of [`crate::math::Aabb::slab`]
+    /// with selects.
     #[inline(always)]
     fn lane(&self, rays: &RayBatch, j: usize, t_max: f32) -> (bool, f32, u32) {
         let (lo, hi) = (self.bounds.min.to_array(), self.bounds.max.to_array());
@@ -226,26 +221,6 @@ impl Cuboid {
             if enter { t_enter } else { t_exit },
             if enter { axis_enter } else { 3 + axis_exit },
         )
-    }
-
-    /// [`Cuboid::intersect`] for every ray of the batch (see
-    /// [`Sphere::closest_batch`]).
-    #[inline(always)]
-    pub fn closest_batch(&self, rays: &RayBatch, best: &mut Closest, object: u32) {
-        for j in 0..rays.groups() * GROUP {
-            let (hit, t, prim) = self.lane(rays, j, best.t[j]);
-            best.t[j] = if hit { t } else { best.t[j] };
-            best.object[j] = if hit { object } else { best.object[j] };
-            best.prim[j] = if hit { prim } else { best.prim[j] };
-        }
-    }
-
-    /// [`Shape::occludes`](super::Shape::occludes) for every ray of the batch.
-    #[inline(always)]
-    pub fn any_batch(&self, rays: &RayBatch, hit: &mut [bool; BATCH]) {
-        for (j, h) in hit[..rays.groups() * GROUP].iter_mut().enumerate() {
-            *h = self.lane(rays, j, rays.t_max[j]).0;
-        }
     }
 }
 
@@ -296,19 +271,14 @@ mod tests {
             let batch = RayBatch::new(&rs);
             let mut best = Closest::start(&batch);
             let mut any = [false; BATCH];
+            let mut run = |s: &dyn Lanes| {
+                closest_batch(&s, &batch, &mut best, 7);
+                any_batch(&s, &batch, &mut any);
+            };
             match shape {
-                Shape::Sphere(s) => {
-                    s.closest_batch(&batch, &mut best, 7);
-                    s.any_batch(&batch, &mut any);
-                }
-                Shape::Plane(s) => {
-                    s.closest_batch(&batch, &mut best, 7);
-                    s.any_batch(&batch, &mut any);
-                }
-                Shape::Cuboid(s) => {
-                    s.closest_batch(&batch, &mut best, 7);
-                    s.any_batch(&batch, &mut any);
-                }
+                Shape::Sphere(s) => run(s),
+                Shape::Plane(s) => run(s),
+                Shape::Cuboid(s) => run(s),
                 _ => unreachable!(),
             }
             for (j, r) in rs.iter().enumerate() {

@@ -26,7 +26,7 @@ pub use texture::{CheckerMode, Texture};
 
 use crate::accel::{Bvh, Tlas, TraversalCounters};
 pub use crate::geometry::TraceCounters;
-use crate::geometry::batch::{BATCH, Closest, RayBatch};
+use crate::geometry::batch::{BATCH, Closest, RayBatch, any_batch, closest_batch};
 use crate::geometry::{Shape, ShapeHit, SurfacePoint};
 use crate::light::LightSet;
 use crate::math::{Aabb, Color, Ray, Vec3};
@@ -608,9 +608,9 @@ impl Scene {
         let mut best = Closest::start(rays);
         for (i, o) in self.objects.iter().enumerate() {
             match &o.shape {
-                Shape::Sphere(s) => s.closest_batch(rays, &mut best, i as u32),
-                Shape::Plane(s) => s.closest_batch(rays, &mut best, i as u32),
-                Shape::Cuboid(s) => s.closest_batch(rays, &mut best, i as u32),
+                Shape::Sphere(s) => closest_batch(s, rays, &mut best, i as u32),
+                Shape::Plane(s) => closest_batch(s, rays, &mut best, i as u32),
+                Shape::Cuboid(s) => closest_batch(s, rays, &mut best, i as u32),
                 _ => unreachable!("intersect_batch on a scene that is not batchable"),
             }
         }
@@ -650,9 +650,9 @@ impl Scene {
     #[inline(always)]
     fn occludes_batch_lanes(&self, i: u32, rays: &RayBatch, hit: &mut [bool; BATCH]) {
         match &self.objects[i as usize].shape {
-            Shape::Sphere(s) => s.any_batch(rays, hit),
-            Shape::Plane(s) => s.any_batch(rays, hit),
-            Shape::Cuboid(s) => s.any_batch(rays, hit),
+            Shape::Sphere(s) => any_batch(s, rays, hit),
+            Shape::Plane(s) => any_batch(s, rays, hit),
+            Shape::Cuboid(s) => any_batch(s, rays, hit),
             _ => unreachable!("occludes_batch on a shape without a batch test"),
         }
     }
