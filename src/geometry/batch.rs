@@ -100,6 +100,14 @@ fn contains(t: f32, t_min: f32, t_max: f32) -> bool {
 /// straight-line code the compiler can run on many lanes at once.
 pub trait Lanes {
     fn lane(&self, rays: &RayBatch, j: usize, t_max: f32) -> (bool, f32, u32);
+
+    /// Whether lane `j`'s line certainly misses the shape (so `lane` has no
+    /// hit there), by a test cheaper than `lane`: whole groups of lanes
+    /// that miss are skipped. Never, unless a shape says otherwise.
+    #[inline(always)]
+    fn misses(&self, _rays: &RayBatch, _j: usize) -> bool {
+        false
+    }
 }
 
 impl<T: Lanes + ?Sized> Lanes for &T {
@@ -107,26 +115,102 @@ impl<T: Lanes + ?Sized> Lanes for &T {
     fn lane(&self, rays: &RayBatch, j: usize, t_max: f32) -> (bool, f32, u32) {
         (**self).lane(rays, j, t_max)
     }
+
+    #[inline(always)]
+    fn misses(&self, rays: &RayBatch, j: usize) -> bool {
+        (**self).misses(rays, j)
+    }
+}
+
+/// Calls `lane(j)` for each lane `j` of the groups of lanes of the batch
+/// that `shape` may meet (whole groups: the loops over a group's lanes have
+/// a fixed count and bounds the compiler can see, so they are vectorised).
+#[inline(always)]
+fn for_lanes_met(shape: &impl Lanes, rays: &RayBatch, mut lane: impl FnMut(usize)) {
+    for g in 0..BATCH / GROUP {
+        if g >= rays.groups() {
+            break;
+        }
+        let first = g * GROUP;
+        let mut all_miss = true;
+        for j in first..first + GROUP {
+            all_miss &= shape.misses(rays, j);
+        }
+        if !all_miss {
+            for j in first..first + GROUP {
+                lane(j);
+            }
+        }
+    }
 }
 
 /// The shape's `intersect` for every ray of the batch, keeping the closer
 /// of its hit and `best`'s (which it updates for object `object`).
 #[inline(always)]
 pub fn closest_batch(shape: &impl Lanes, rays: &RayBatch, best: &mut Closest, object: u32) {
-    for j in 0..rays.groups() * GROUP {
+    for_lanes_met(shape, rays, |j| {
         let (hit, t, prim) = shape.lane(rays, j, best.t[j]);
         best.t[j] = if hit { t } else { best.t[j] };
         best.object[j] = if hit { object } else { best.object[j] };
         best.prim[j] = if hit { prim } else { best.prim[j] };
-    }
+    });
 }
 
 /// [`Shape::occludes`](super::Shape::occludes) for every ray of the batch.
 #[inline(always)]
 pub fn any_batch(shape: &impl Lanes, rays: &RayBatch, hit: &mut [bool; BATCH]) {
-    for (j, h) in hit[..rays.groups() * GROUP].iter_mut().enumerate() {
-        *h = shape.lane(rays, j, rays.t_max[j]).0;
-    }
+    hit.fill(false);
+    for_lanes_met(shape, rays, |j| {
+        hit[j] = shape.lane(rays, j, rays.t_max[j]).0
+    });
+}
+
+/// [`Sphere::roots`] for lane `j` as f32 (as its callers round them); the
+/// same operations, with selects for its early returns. Where the line
+/// misses (`Δ < 0`), `√Δ` is NaN and so are both roots, which no segment
+/// contains: no test of `Δ` is needed.
+#[inline(always)]
+fn sphere_roots(s: &Sphere, rays: &RayBatch, j: usize) -> (f32, f32) {
+    let (f, d, a, discriminant) = sphere_discriminant(s, rays, j);
+    let r = s.radius as f64;
+    let b = f[0] * d[0] + f[1] * d[1] + f[2] * d[2];
+    let q = -(b + discriminant.sqrt().copysign(b));
+    let cc = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) - r * r;
+    let (t0, t1) = (q / a, cc / q);
+    let (t0, t1) = if q == 0.0 {
+        (0.0, 0.0)
+    } else if t0 <= t1 {
+        (t0, t1)
+    } else {
+        (t1, t0)
+    };
+    (t0 as f32, t1 as f32)
+}
+
+/// The first steps of [`Sphere::roots`] for lane `j`: the origin
+/// relative to the centre `f`, the direction `d`, `a = d·d`, and the
+/// discriminant `Δ = a·r² − |f × d|²` (the line misses where `Δ < 0`).
+#[inline(always)]
+fn sphere_discriminant(s: &Sphere, rays: &RayBatch, j: usize) -> ([f64; 3], [f64; 3], f64, f64) {
+    let (c, r) = (s.center.as_dvec3(), s.radius as f64);
+    let f = [
+        rays.o[0][j] as f64 - c.x,
+        rays.o[1][j] as f64 - c.y,
+        rays.o[2][j] as f64 - c.z,
+    ];
+    let d = [
+        rays.d[0][j] as f64,
+        rays.d[1][j] as f64,
+        rays.d[2][j] as f64,
+    ];
+    let a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let x = [
+        f[1] * d[2] - f[2] * d[1],
+        f[2] * d[0] - f[0] * d[2],
+        f[0] * d[1] - f[1] * d[0],
+    ];
+    let discriminant = a * (r * r) - (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+    (f, d, a, discriminant)
 }
 
 impl Lanes for Sphere {
@@ -134,41 +218,76 @@ impl Lanes for Sphere {
     /// with selects for their early returns.
     #[inline(always)]
     fn lane(&self, rays: &RayBatch, j: usize, t_max: f32) -> (bool, f32, u32) {
-        let (c, r) = (self.center.as_dvec3(), self.radius as f64);
-        let f = [
-            rays.o[0][j] as f64 - c.x,
-            rays.o[1][j] as f64 - c.y,
-            rays.o[2][j] as f64 - c.z,
-        ];
-        let d = [
-            rays.d[0][j] as f64,
-            rays.d[1][j] as f64,
-            rays.d[2][j] as f64,
-        ];
-        let a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        let x = [
-            f[1] * d[2] - f[2] * d[1],
-            f[2] * d[0] - f[0] * d[2],
-            f[0] * d[1] - f[1] * d[0],
-        ];
-        let discriminant = a * (r * r) - (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
-        let b = f[0] * d[0] + f[1] * d[1] + f[2] * d[2];
-        let q = -(b + discriminant.sqrt().copysign(b));
-        let cc = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) - r * r;
-        let (t0, t1) = (q / a, cc / q);
-        let (t0, t1) = if q == 0.0 {
-            (0.0, 0.0)
-        } else if t0 <= t1 {
-            (t0, t1)
-        } else {
-            (t1, t0)
-        };
-        let (t0, t1) = (t0 as f32, t1 as f32);
+        let (t0, t1) = sphere_roots(self, rays, j);
         let t_min = rays.t_min[j];
         let (in0, in1) = (contains(t0, t_min, t_max), contains(t1, t_min, t_max));
-        // Where the line misses (Δ < 0), √Δ is NaN and so are both roots,
-        // which no segment contains: no test of Δ is needed.
         (in0 | in1, if in0 { t0 } else { t1 }, 0)
+    }
+
+    /// The line misses the sphere: `Δ < 0`, as [`Sphere::roots`] computes it.
+    #[inline(always)]
+    fn misses(&self, rays: &RayBatch, j: usize) -> bool {
+        sphere_discriminant(self, rays, j).3 < 0.0
+    }
+}
+
+/// For every ray of the batch, the product of the Fresnel transmittances
+/// (light entering glass of index `ior` from outside, at the angle of
+/// incidence) of the crossings of the sphere's surface by the ray's
+/// segment, 1 where it crosses none: what [`Sphere::crossings`] hands to
+/// the shadow-ray code, in the same operations and order, multiplied
+/// together (multiplying by 1 is exact).
+#[inline(always)]
+pub fn sphere_glass_lanes(s: &Sphere, ior: f32, rays: &RayBatch, passed: &mut [f32; BATCH]) {
+    let (c, radius) = (s.center, s.radius);
+    passed.fill(1.0);
+    for_lanes_met(
+        s,
+        rays,
+        #[inline(always)]
+        |j| {
+            let (t0, t1) = sphere_roots(s, rays, j);
+            let d = [rays.d[0][j], rays.d[1][j], rays.d[2][j]];
+            let o = [rays.o[0][j], rays.o[1][j], rays.o[2][j]];
+            let d_len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let mut p = 1.0f32;
+            for t in [t0, t1] {
+                // The unit normal at the crossing, as `(ray.at(t) − c) / r`.
+                let n = [
+                    (o[0] + d[0] * t - c.x) / radius,
+                    (o[1] + d[1] * t - c.y) / radius,
+                    (o[2] + d[2] * t - c.z) / radius,
+                ];
+                let cos = ((n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / d_len)
+                    .abs()
+                    .min(1.0);
+                let crossed = contains(t, rays.t_min[j], rays.t_max[j]);
+                let f = fresnel_transmittance_lane(cos, ior);
+                p = if crossed { p * f } else { p };
+            }
+            passed[j] = p;
+        },
+    );
+}
+
+/// [`fresnel_dielectric`](crate::shading::fresnel_dielectric)`(cos_i, 1,
+/// eta_t).transmittance` in the same operations, its early return (total
+/// internal reflection or grazing light: 0) a select.
+#[inline(always)]
+fn fresnel_transmittance_lane(cos_i: f32, eta_t: f32) -> f32 {
+    let eta_i = 1.0f32;
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin_t = eta_i / eta_t * (1.0 - cos_i * cos_i).sqrt();
+    let cos_t = (1.0 - sin_t * sin_t).sqrt();
+    let (ii, tt) = (eta_i * cos_i, eta_t * cos_t);
+    let (it, ti) = (eta_i * cos_t, eta_t * cos_i);
+    let t_s = 2.0 * ii / (ii + tt);
+    let t_p = 2.0 * ii / (ti + it);
+    let t = tt / ii * 0.5 * (t_s * t_s + t_p * t_p);
+    if (sin_t >= 1.0) | (cos_i == 0.0) {
+        0.0
+    } else {
+        t
     }
 }
 
@@ -230,6 +349,7 @@ mod tests {
     use crate::geometry::{Shape, ShapeHit, TraceCounters};
     use crate::math::Vec3;
     use crate::render::Pcg32;
+    use crate::shading::fresnel_dielectric;
 
     /// Rays of every kind the renderer makes against the shape: from far
     /// away, from the surface (origins just off it), from inside, grazing,
@@ -299,6 +419,19 @@ mod tests {
                     assert_eq!(best.t[j].to_bits(), r.t_max.to_bits());
                 }
             }
+            if let Shape::Sphere(s) = shape {
+                // What a glass sphere lets through: the product of the
+                // transmittances of the crossings the one-ray code finds.
+                let mut passed = [0.0; BATCH];
+                sphere_glass_lanes(s, 1.5, &batch, &mut passed);
+                for (j, r) in rs.iter().enumerate() {
+                    let mut one = 1.0f32;
+                    shape.crossings(r, &mut counters, &mut |cos| {
+                        one *= fresnel_dielectric(cos, 1.0, 1.5).transmittance;
+                    });
+                    assert_eq!(one.to_bits(), passed[j].to_bits(), "{r:?}");
+                }
+            }
         }
     }
 
@@ -306,6 +439,12 @@ mod tests {
     fn sphere_lanes_are_the_one_ray_test() {
         check(
             &Shape::Sphere(Sphere::new(Vec3::new(0.3, 1.0, -2.0), 0.85)),
+            Vec3::new(0.3, 1.0, -2.0),
+            1.0,
+        );
+        // Small in the rays' box: most groups of lanes miss it whole.
+        check(
+            &Shape::Sphere(Sphere::new(Vec3::new(0.3, 1.0, -2.0), 0.05)),
             Vec3::new(0.3, 1.0, -2.0),
             1.0,
         );

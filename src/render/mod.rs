@@ -669,9 +669,28 @@ fn render_tile<I: Integrator>(
     } else {
         None
     };
+    if let Some(out) = tile_streamed {
+        // Each pixel's samples in turn, as traced.
+        let mut radiance = out.chunks_exact(samples.count as usize);
+        for (dy, row) in tile.rows.iter_mut().enumerate() {
+            for (dx, pixel) in row.iter_mut().enumerate() {
+                let mut sum = SampleSum::default();
+                let mut bad = 0;
+                for &l in radiance.next().expect("a radiance per sample") {
+                    bad += take_sample(l, settings.clamp, plain, pixel, &mut sum) as u64;
+                }
+                bad_samples += bad;
+                nan_pixels += (bad > 0) as u64;
+                let kept = tile.sums.get_mut(dy).map(|s| &mut s[dx]);
+                finish_pixel(pixel, &sum, kept, accumulate, plain, bad, samples.count);
+            }
+        }
+        counters.rays.camera += out.len() as u64;
+        return tile_counters(&counters, bad_samples, nan_pixels);
+    }
     for (dy, row) in tile.rows.iter_mut().enumerate() {
         let y = tile.y0 + dy as u32;
-        if single && tile_streamed.is_none() {
+        if single {
             for (dx, (p, s)) in points
                 .iter_mut()
                 .zip(&mut row_samples[..row.len()])
@@ -687,7 +706,6 @@ fn render_tile<I: Integrator>(
                 .camera
                 .rays(&points[..n], width, height, &mut rays[..n]);
         }
-        let row_len = row.len();
         for (dx, pixel) in row.iter_mut().enumerate() {
             let x = tile.x0 + dx as u32;
             let mut sum = SampleSum::default();
@@ -704,7 +722,7 @@ fn render_tile<I: Integrator>(
                 let ray = if single {
                     rays[dx]
                 } else {
-                    if k == 0 && tile_streamed.is_none() {
+                    if k == 0 {
                         let n = (samples.end() - index).min(RAYS as u64) as usize;
                         for (j, p) in points[..n].iter_mut().enumerate() {
                             let (u, v) = pixel_samples.offset(index as u32 + j as u32);
@@ -730,52 +748,19 @@ fn render_tile<I: Integrator>(
                 } else {
                     None
                 };
-                let mut l = escaped.unwrap_or_else(|| {
-                    if let Some(out) = &tile_streamed {
-                        let sample = (index - samples.start as u64) as usize;
-                        return out[(dy * row_len + dx) * samples.count as usize + sample];
-                    }
+                let l = escaped.unwrap_or_else(|| {
                     if streaming {
                         return streamed[k];
                     }
                     let mut sampler = pixel_samples.sampler(index as u32);
                     integrator.radiance(scene, &ray, &mut sampler, &mut counters)
                 });
-                // The explicit, optional clamp (off by default).
-                if let Some(c) = settings.clamp {
-                    let m = l.max_element();
-                    if m > c {
-                        l *= c / m;
-                    }
-                }
-                // Guard: no NaN or infinity reaches a pixel; count them
-                // instead. Sums are exact and clamped, so every pixel stays
-                // finite.
-                if !l.is_finite() {
-                    bad += 1;
-                } else if plain {
-                    // One sample and no sums: its mean, without them.
-                    *pixel = SampleSum::mean_of_one(l);
-                } else {
-                    sum.add_sample(l);
-                }
+                bad += take_sample(l, settings.clamp, plain, pixel, &mut sum) as u64;
             }
             bad_samples += bad;
             nan_pixels += (bad > 0) as u64;
-            match (accumulate, tile.sums.get_mut(dy)) {
-                (Some(total), Some(s)) => {
-                    s[dx].add(&sum);
-                    *pixel = s[dx].mean(total);
-                }
-                (_, s) => {
-                    if !plain || bad > 0 {
-                        *pixel = sum.mean(samples.count as u64);
-                    }
-                    if let Some(s) = s {
-                        s[dx] = sum;
-                    }
-                }
-            }
+            let kept = tile.sums.get_mut(dy).map(|s| &mut s[dx]);
+            finish_pixel(pixel, &sum, kept, accumulate, plain, bad, samples.count);
             if let (Some(row), Some(before)) = (tile.aovs.get_mut(dy), before) {
                 let a = &mut row[dx];
                 let r = &counters.rays;
@@ -804,6 +789,11 @@ fn render_tile<I: Integrator>(
             }
         }
     }
+    tile_counters(&counters, bad_samples, nan_pixels)
+}
+
+/// A tile's counts.
+fn tile_counters(counters: &Counters, bad_samples: u64, nan_pixels: u64) -> TileCounters {
     TileCounters {
         rays: counters.rays,
         intersection_tests: counters.trace.intersection_tests,
@@ -815,5 +805,66 @@ fn render_tile<I: Integrator>(
         nan_pixels,
         ray_trees_cut: counters.ray_trees_cut,
         implicit_searches_cut: counters.trace.implicit_searches_cut,
+    }
+}
+
+/// A sample's radiance `l` into its pixel: scaled down to the optional
+/// `clamp` (off by default), then, unless it is NaN or infinite (returns
+/// true: such samples are counted, never let through), written as the
+/// pixel's value (`plain`: one sample and no sums) or added to `sum`. Sums
+/// are exact and clamped, so every pixel stays finite.
+#[inline(always)]
+fn take_sample(
+    mut l: Color,
+    clamp: Option<f32>,
+    plain: bool,
+    pixel: &mut Color,
+    sum: &mut SampleSum,
+) -> bool {
+    if let Some(c) = clamp {
+        let m = l.max_element();
+        if m > c {
+            l *= c / m;
+        }
+    }
+    if !l.is_finite() {
+        return true;
+    }
+    if plain {
+        *pixel = SampleSum::mean_of_one(l);
+    } else {
+        sum.add_sample(l);
+    }
+    false
+}
+
+/// A pixel's value after its `count` samples (`bad` of them rejected) went
+/// into `sum`: with `accumulate` (the samples taken in all, earlier passes'
+/// included) the mean of the film's kept sum plus this one, else this
+/// sum's mean (already written where `plain` and none was rejected), kept
+/// if the film keeps sums.
+#[inline(always)]
+fn finish_pixel(
+    pixel: &mut Color,
+    sum: &SampleSum,
+    kept: Option<&mut SampleSum>,
+    accumulate: Option<u64>,
+    plain: bool,
+    bad: u64,
+    count: u32,
+) {
+    match (accumulate, kept) {
+        (Some(total), Some(s)) => {
+            s.add(sum);
+            *pixel = s.mean(total);
+        }
+        (_, s) => {
+            if !plain || bad > 0 {
+                *pixel = sum.mean(count as u64);
+            }
+            if let Some(s) = s {
+                *s = *sum;
+            }
+        }
     }
 }

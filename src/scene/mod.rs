@@ -26,7 +26,9 @@ pub use texture::{CheckerMode, Texture};
 
 use crate::accel::{Bvh, Tlas, TraversalCounters};
 pub use crate::geometry::TraceCounters;
-use crate::geometry::batch::{BATCH, Closest, RayBatch, any_batch, closest_batch};
+use crate::geometry::batch::{
+    BATCH, Closest, RayBatch, any_batch, closest_batch, sphere_glass_lanes,
+};
 use crate::geometry::{Shape, ShapeHit, SurfacePoint};
 use crate::light::LightSet;
 use crate::math::{Aabb, Color, Ray, Vec3};
@@ -577,84 +579,70 @@ impl Scene {
     pub fn intersect_batch(&self, rays: &RayBatch, counters: &mut TraceCounters) -> Closest {
         debug_assert!(self.batchable());
         counters.intersection_tests += (self.objects.len() * rays.len) as u64;
-        #[cfg(target_arch = "x86_64")]
-        {
-            if simd_level() >= 2 {
-                // SAFETY: the CPU has AVX-512F (checked just above).
-                return unsafe { self.intersect_batch_avx512(rays) };
-            }
-            if simd_level() == 1 {
-                // SAFETY: the CPU has AVX2 (checked just above).
-                return unsafe { self.intersect_batch_avx2(rays) };
-            }
-        }
-        self.intersect_batch_lanes(rays)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    fn intersect_batch_avx512(&self, rays: &RayBatch) -> Closest {
-        self.intersect_batch_lanes(rays)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn intersect_batch_avx2(&self, rays: &RayBatch) -> Closest {
-        self.intersect_batch_lanes(rays)
-    }
-
-    #[inline(always)]
-    fn intersect_batch_lanes(&self, rays: &RayBatch) -> Closest {
-        let mut best = Closest::start(rays);
-        for (i, o) in self.objects.iter().enumerate() {
-            match &o.shape {
-                Shape::Sphere(s) => closest_batch(s, rays, &mut best, i as u32),
-                Shape::Plane(s) => closest_batch(s, rays, &mut best, i as u32),
-                Shape::Cuboid(s) => closest_batch(s, rays, &mut best, i as u32),
-                _ => unreachable!("intersect_batch on a scene that is not batchable"),
-            }
-        }
-        best
+        widest(
+            #[inline(always)]
+            || {
+                let mut best = Closest::start(rays);
+                for (i, o) in self.objects.iter().enumerate() {
+                    match &o.shape {
+                        Shape::Sphere(s) => closest_batch(s, rays, &mut best, i as u32),
+                        Shape::Plane(s) => closest_batch(s, rays, &mut best, i as u32),
+                        Shape::Cuboid(s) => closest_batch(s, rays, &mut best, i as u32),
+                        _ => unreachable!("intersect_batch on a scene that is not batchable"),
+                    }
+                }
+                best
+            },
+        )
     }
 
     /// [`Shape::occludes`] of object `i` (a sphere, plane or box) for a
     /// batch of rays: `hit[j]` for ray `j`. Counts nothing (the caller
     /// knows which tests it needed).
     pub fn occludes_batch(&self, i: u32, rays: &RayBatch, hit: &mut [bool; BATCH]) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if simd_level() >= 2 {
-                // SAFETY: the CPU has AVX-512F.
-                return unsafe { self.occludes_batch_avx512(i, rays, hit) };
-            }
-            if simd_level() == 1 {
-                // SAFETY: the CPU has AVX2.
-                return unsafe { self.occludes_batch_avx2(i, rays, hit) };
-            }
-        }
-        self.occludes_batch_lanes(i, rays, hit)
+        // The answers are made in a local array: written through a
+        // captured reference, the compiler could not tell them apart from
+        // the rays and would not vectorise.
+        *hit = widest(
+            #[inline(always)]
+            || {
+                let mut out = [false; BATCH];
+                match &self.objects[i as usize].shape {
+                    Shape::Sphere(s) => any_batch(s, rays, &mut out),
+                    Shape::Plane(s) => any_batch(s, rays, &mut out),
+                    Shape::Cuboid(s) => any_batch(s, rays, &mut out),
+                    _ => unreachable!("occludes_batch on a shape without a batch test"),
+                }
+                out
+            },
+        );
     }
 
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    fn occludes_batch_avx512(&self, i: u32, rays: &RayBatch, hit: &mut [bool; BATCH]) {
-        self.occludes_batch_lanes(i, rays, hit)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn occludes_batch_avx2(&self, i: u32, rays: &RayBatch, hit: &mut [bool; BATCH]) {
-        self.occludes_batch_lanes(i, rays, hit)
-    }
-
-    #[inline(always)]
-    fn occludes_batch_lanes(&self, i: u32, rays: &RayBatch, hit: &mut [bool; BATCH]) {
-        match &self.objects[i as usize].shape {
-            Shape::Sphere(s) => any_batch(s, rays, hit),
-            Shape::Plane(s) => any_batch(s, rays, hit),
-            Shape::Cuboid(s) => any_batch(s, rays, hit),
-            _ => unreachable!("occludes_batch on a shape without a batch test"),
-        }
+    /// What object `i`, a sphere of glass of index of refraction `ior`,
+    /// lets through of each shadow ray of the batch where it does not
+    /// absorb: the product of the Fresnel transmittances of the segment's
+    /// crossings of its surface (1 where there is none), as
+    /// [`Shape::crossings`] gives them. `false` (and nothing written) for
+    /// other shapes.
+    pub fn sphere_glass_batch(
+        &self,
+        i: u32,
+        ior: f32,
+        rays: &RayBatch,
+        passed: &mut [f32; BATCH],
+    ) -> bool {
+        let Shape::Sphere(s) = &self.objects[i as usize].shape else {
+            return false;
+        };
+        *passed = widest(
+            #[inline(always)]
+            || {
+                let mut out = [1.0; BATCH];
+                sphere_glass_lanes(s, ior, rays, &mut out);
+                out
+            },
+        );
+        true
     }
 
     /// Whether object `i`'s material stops shadow rays (all but dielectrics).
@@ -662,6 +650,34 @@ impl Scene {
     pub fn is_opaque(&self, i: u32) -> bool {
         self.opaque[i as usize]
     }
+}
+
+/// `f()`, compiled for the widest vector unit the CPU has (AVX-512F,
+/// AVX2 or the baseline, chosen at run time): for the batch tests, whose
+/// loops the compiler vectorises. `f` must be inlined (`#[inline(always)]`
+/// on the closure) for its code to be compiled for the wider unit.
+#[inline(always)]
+fn widest<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx512f")]
+        fn avx512<R>(f: impl FnOnce() -> R) -> R {
+            f()
+        }
+        #[target_feature(enable = "avx2")]
+        fn avx2<R>(f: impl FnOnce() -> R) -> R {
+            f()
+        }
+        if simd_level() >= 2 {
+            // SAFETY: the CPU has AVX-512F (checked just above).
+            return unsafe { avx512(f) };
+        }
+        if simd_level() == 1 {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            return unsafe { avx2(f) };
+        }
+    }
+    f()
 }
 
 /// The widest vector unit the batch tests may use: 2 for AVX-512, 1 for

@@ -230,8 +230,8 @@ impl Whitted {
 }
 
 /// [`super::transmittance`] for a batch of shadow rays (`rays`, also as
-/// `batch`): opaque objects are tested against all rays at once, glass
-/// ones ray by ray; the same values and counts.
+/// `batch`): opaque objects and clear glass spheres are tested against all
+/// rays at once, other glass ray by ray; the same values and counts.
 fn transmittance_batch(
     scene: &Scene,
     batch: &RayBatch,
@@ -242,6 +242,7 @@ fn transmittance_batch(
     let mut tr = [Color::ONE; BATCH];
     let mut blocked = [false; BATCH];
     let mut hit = [false; BATCH];
+    let mut passed = [1.0f32; BATCH];
     let objects = scene.objects.len() as u64;
     for i in 0..scene.objects.len() as u32 {
         if scene.is_opaque(i) {
@@ -256,9 +257,19 @@ fn transmittance_batch(
             // Glass changes `tr` only where the segment crosses its surface
             // (`tr *= 1` is exact), which is where it would occlude, unless
             // it absorbs (then a segment wholly inside it counts too).
-            let absorbs = scene.materials[scene.objects[i as usize].material as usize]
-                .glass()
-                .is_some_and(|(_, a)| a != Color::ZERO);
+            let glass = scene.materials[scene.objects[i as usize].material as usize].glass();
+            let absorbs = glass.is_some_and(|(_, a)| a != Color::ZERO);
+            if let Some((ior, _)) = glass
+                && !absorbs
+                && scene.sphere_glass_batch(i, ior, batch, &mut passed)
+            {
+                for j in 0..n {
+                    if !blocked[j] {
+                        tr[j] *= passed[j];
+                    }
+                }
+                continue;
+            }
             if !absorbs {
                 scene.occludes_batch(i, batch, &mut hit);
             }
