@@ -211,11 +211,9 @@ impl Whitted {
         }
         if p.depth < self.max_depth {
             node.first_child = next_base + s.next.0.len() as u32;
-            for sec in self
-                .secondaries(scene, &at, p.weight, &mut super::NoRecord)
-                .into_iter()
-                .flatten()
-            {
+            // By reference: moving the array into an iterator copies it.
+            let secondaries = self.secondaries(scene, &at, p.weight, &mut super::NoRecord);
+            for sec in secondaries.iter().flatten() {
                 sec.count(counters);
                 node.children += 1;
                 s.next.0.push(sec.ray);

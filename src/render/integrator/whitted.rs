@@ -142,11 +142,9 @@ impl Whitted {
         let carried = throughput * absorption.unwrap_or(Color::ONE);
 
         if depth < self.max_depth {
-            for s in self
-                .secondaries(scene, &at, weight, rec)
-                .into_iter()
-                .flatten()
-            {
+            // By reference: moving the array into an iterator copies it.
+            let secondaries = self.secondaries(scene, &at, weight, rec);
+            for s in secondaries.iter().flatten() {
                 if !spend(budget) {
                     continue;
                 }
