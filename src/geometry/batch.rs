@@ -55,10 +55,8 @@ impl RayBatch {
         assert!(rays.len() <= BATCH, "{} rays in a batch", rays.len());
         self.len = rays.len();
         for (j, r) in rays.iter().enumerate() {
-            for k in 0..3 {
-                self.o[k][j] = r.o[k];
-                self.d[k][j] = r.d[k];
-            }
+            [self.o[0][j], self.o[1][j], self.o[2][j]] = r.o.to_array();
+            [self.d[0][j], self.d[1][j], self.d[2][j]] = r.d.to_array();
             self.t_min[j] = r.t_min;
             self.t_max[j] = r.t_max;
         }

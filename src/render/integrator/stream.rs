@@ -12,7 +12,7 @@
 //! to sample (they draw random numbers in depth-first order), and ray trees
 //! that cannot outgrow [`MAX_RAY_TREE`] (whose cut depends on that order).
 
-use super::whitted::{AtHit, LightTerm, local_terms, through_glass};
+use super::whitted::{AtHit, LightGain, local_terms, through_glass};
 use super::{Counters, MAX_RAY_TREE, Tracer, Whitted};
 use crate::geometry::ShapeHit;
 use crate::geometry::batch::{BATCH, NO_HIT, RayBatch};
@@ -44,11 +44,11 @@ struct Pending {
     weight: f32,
 }
 
-/// A shadow ray's node and the term it adds there if unblocked (its ray is
-/// at the same place in the wave's shadow rays).
+/// A shadow ray's node and what it adds there if unblocked (its ray is at
+/// the same place in the wave's shadow rays).
 struct Shadow {
     node: u32,
-    term: LightTerm,
+    gain: LightGain,
 }
 
 /// Buffers kept per thread between calls.
@@ -159,7 +159,7 @@ impl Whitted {
                 let visibility = transmittance_batch(scene, &batch, rays, &mut counters.trace);
                 for (shadow, &v) in shadows.iter().zip(&visibility[..rays.len()]) {
                     if v != Color::ZERO {
-                        s.nodes[shadow.node as usize].local += shadow.term.radiance(v);
+                        s.nodes[shadow.node as usize].local += shadow.gain.radiance(v);
                     }
                 }
             }
@@ -204,7 +204,10 @@ impl Whitted {
         node.local = local_terms(scene, &at.si, at.wo, at.n_facing, None, |_, term| {
             counters.rays.shadow += 1;
             shadow_rays.push(term.ray);
-            shadows.push(Shadow { node: index, term });
+            shadows.push(Shadow {
+                node: index,
+                gain: term.gain,
+            });
         });
         if let Some(a) = at.absorption(hit.t * ray.d.length()) {
             node.absorption = a;

@@ -351,7 +351,7 @@ pub(super) fn local_shading<R: Recorder>(
             }
             return;
         }
-        let radiance = term.radiance(visibility);
+        let radiance = term.gain.radiance(visibility);
         rec.shadow(scene, term.light, &term.ray, visibility, None, radiance);
         *l += radiance;
     })
@@ -375,6 +375,13 @@ pub(super) fn area_rotation(
 pub(super) struct LightTerm {
     pub light: usize,
     pub ray: Ray,
+    pub gain: LightGain,
+}
+
+/// What a light sample brings through its shadow ray (see
+/// [`LightGain::radiance`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LightGain {
     irradiance: Color,
     /// `k_d·C·(N·L)`.
     diffuse: Color,
@@ -385,7 +392,7 @@ pub(super) struct LightTerm {
     shininess: f32,
 }
 
-impl LightTerm {
+impl LightGain {
     /// The term's radiance through the shadow ray's transmittance
     /// `visibility`: `V·E·(k_d·C·(N·L) + k_s·(N·H)^n)`.
     #[inline]
@@ -467,11 +474,13 @@ pub(super) fn local_terms(
             LightTerm {
                 light: index,
                 ray: shadow_ray,
-                irradiance,
-                diffuse: m.diffuse * cos * albedo,
-                specular: m.specular,
-                n_dot_h,
-                shininess: m.shininess,
+                gain: LightGain {
+                    irradiance,
+                    diffuse: m.diffuse * cos * albedo,
+                    specular: m.specular,
+                    n_dot_h,
+                    shininess: m.shininess,
+                },
             },
         );
     }
