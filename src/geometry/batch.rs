@@ -120,11 +120,10 @@ impl<T: Lanes + ?Sized> Lanes for &T {
     }
 }
 
-/// Calls `lane(j)` for each lane `j` of the groups of lanes of the batch
-/// that `shape` may meet (whole groups: the loops over a group's lanes have
-/// a fixed count and bounds the compiler can see, so they are vectorised).
+/// Calls `group(first)` with the first lane of each group of lanes of the
+/// batch that `shape` may meet (whole groups of [`GROUP`] lanes).
 #[inline(always)]
-fn for_lanes_met(shape: &impl Lanes, rays: &RayBatch, mut lane: impl FnMut(usize)) {
+fn for_groups_met(shape: &impl Lanes, rays: &RayBatch, mut group: impl FnMut(usize)) {
     for g in 0..BATCH / GROUP {
         if g >= rays.groups() {
             break;
@@ -135,11 +134,26 @@ fn for_lanes_met(shape: &impl Lanes, rays: &RayBatch, mut lane: impl FnMut(usize
             all_miss &= shape.misses(rays, j);
         }
         if !all_miss {
+            group(first);
+        }
+    }
+}
+
+/// Calls `lane(j)` for each lane `j` of the groups of lanes of the batch
+/// that `shape` may meet (the loops over a group's lanes have a fixed count
+/// and bounds the compiler can see, so they are vectorised).
+#[inline(always)]
+fn for_lanes_met(shape: &impl Lanes, rays: &RayBatch, mut lane: impl FnMut(usize)) {
+    for_groups_met(
+        shape,
+        rays,
+        #[inline(always)]
+        |first| {
             for j in first..first + GROUP {
                 lane(j);
             }
-        }
-    }
+        },
+    );
 }
 
 /// The shape's `intersect` for every ray of the batch, keeping the closer
@@ -237,35 +251,65 @@ impl Lanes for Sphere {
 /// together (multiplying by 1 is exact).
 #[inline(always)]
 pub fn sphere_glass_lanes(s: &Sphere, ior: f32, rays: &RayBatch, passed: &mut [f32; BATCH]) {
-    let (c, radius) = (s.center, s.radius);
+    let sphere = (s.center.to_array(), s.radius);
     passed.fill(1.0);
-    for_lanes_met(
+    for_groups_met(
         s,
         rays,
         #[inline(always)]
-        |j| {
-            let (t0, t1) = sphere_roots(s, rays, j);
-            let d = [rays.d[0][j], rays.d[1][j], rays.d[2][j]];
-            let o = [rays.o[0][j], rays.o[1][j], rays.o[2][j]];
-            let d_len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            let mut p = 1.0f32;
-            for t in [t0, t1] {
-                // The unit normal at the crossing, as `(ray.at(t) − c) / r`.
-                let n = [
-                    (o[0] + d[0] * t - c.x) / radius,
-                    (o[1] + d[1] * t - c.y) / radius,
-                    (o[2] + d[2] * t - c.z) / radius,
-                ];
-                let cos = ((n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / d_len)
-                    .abs()
-                    .min(1.0);
-                let crossed = contains(t, rays.t_min[j], rays.t_max[j]);
-                let f = fresnel_transmittance_lane(cos, ior);
-                p = if crossed { p * f } else { p };
+        |first| {
+            // Two loops, each of which the compiler vectorises: the roots
+            // (in f64), then the crossings (in f32).
+            let mut roots = [(0.0, 0.0); GROUP];
+            for (k, r) in roots.iter_mut().enumerate() {
+                *r = sphere_roots(s, rays, first + k);
             }
-            passed[j] = p;
+            for (k, &(t0, t1)) in roots.iter().enumerate() {
+                let j = first + k;
+                let d = [rays.d[0][j], rays.d[1][j], rays.d[2][j]];
+                let o = [rays.o[0][j], rays.o[1][j], rays.o[2][j]];
+                let d_len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                let (t_min, t_max) = (rays.t_min[j], rays.t_max[j]);
+                let (in0, f0) = glass_crossing(sphere, o, d, d_len, t0, t_min, t_max, ior);
+                let (in1, f1) = glass_crossing(sphere, o, d, d_len, t1, t_min, t_max, ior);
+                // 1·T₀ = T₀ exactly: the product as the one-ray code forms it.
+                let p = if in0 { f0 } else { 1.0 };
+                passed[j] = if in1 { p * f1 } else { p };
+            }
         },
     );
+}
+
+/// Whether the segment `[t_min, t_max)` of the ray `o + t·d` (`d_len =
+/// |d|`) contains `t`, a root of the glass sphere of centre `c` and radius
+/// `radius` and index `ior`, and the Fresnel transmittance there, as
+/// [`Sphere::crossings`] computes it. (The centre comes as an array: a
+/// `Vec3A` loaded in the loop would keep it from being vectorised.)
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn glass_crossing(
+    (c, radius): ([f32; 3], f32),
+    o: [f32; 3],
+    d: [f32; 3],
+    d_len: f32,
+    t: f32,
+    t_min: f32,
+    t_max: f32,
+    ior: f32,
+) -> (bool, f32) {
+    // The unit normal there, as `(ray.at(t) − c) / r`.
+    let n = [
+        (o[0] + d[0] * t - c[0]) / radius,
+        (o[1] + d[1] * t - c[1]) / radius,
+        (o[2] + d[2] * t - c[2]) / radius,
+    ];
+    let cos = ((n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / d_len)
+        .abs()
+        .min(1.0);
+    (
+        contains(t, t_min, t_max),
+        fresnel_transmittance_lane(cos, ior),
+    )
 }
 
 /// [`fresnel_dielectric`](crate::shading::fresnel_dielectric)`(cos_i, 1,
