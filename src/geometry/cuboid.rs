@@ -2,7 +2,7 @@
 
 use super::{ShapeHit, SurfacePoint};
 use crate::math::{Aabb, Ray, Vec3, gamma};
-use glam::Vec2;
+use glam::{BVec3A, Vec2};
 
 /// A solid axis-aligned box. Intersected with the slab test; the hit face is
 /// known from the axis whose plane gave `t_enter` (or `t_exit` from inside).
@@ -57,15 +57,16 @@ impl Cuboid {
         } else {
             d_axis < 0.0
         };
-        let mut p = ray.at(hit.t);
-        let mut n = Vec3::ZERO;
-        if outward_positive {
-            p[axis] = self.bounds.max[axis];
-            n[axis] = 1.0;
+        let (face, sign) = if outward_positive {
+            (self.bounds.max, 1.0)
         } else {
-            p[axis] = self.bounds.min[axis];
-            n[axis] = -1.0;
-        }
+            (self.bounds.min, -1.0)
+        };
+        // Selects rather than indexing the vectors by `axis`, which goes
+        // through memory.
+        let on_axis = BVec3A::new(axis == 0, axis == 1, axis == 2);
+        let p = Vec3::select(on_axis, face, ray.at(hit.t));
+        let n = Vec3::select(on_axis, Vec3::splat(sign), Vec3::ZERO);
         let p = p.clamp(self.bounds.min, self.bounds.max);
         SurfacePoint {
             p,
