@@ -75,28 +75,45 @@ fn traversal_matches_brute_force_and_tree_is_valid() {
     }
 }
 
-/// One node visit through the AVX2 lanes of the ray's octant: the
-/// child returned, the leaves set apart, and the stack's entries and
-/// distances as bits.
+/// One node visit through the AVX2 lanes of the ray's octant, for closest
+/// (`ANY` false) or any hits: the child returned, the leaves set apart
+/// (always 0 for closest hits), and the stack's entries with their
+/// distances as bits (0 for any hits, which push none).
 #[cfg(target_arch = "x86_64")]
-fn visit_avx2<const L: bool>(
+fn visit_avx2<const ANY: bool>(
     setup: &RaySetup,
     node: &Bvh8Node,
     t_max: f32,
 ) -> (Option<u32>, u32, Vec<(u32, u32)>) {
-    fn run<const OCT: u32, const L: bool>(
+    fn run<const OCT: u32, const ANY: bool>(
         setup: &RaySetup,
         node: &Bvh8Node,
         t_max: f32,
         stack: &mut Stack,
     ) -> (Option<u32>, u32) {
         // SAFETY: called only where the CPU has AVX2.
-        unsafe { avx2::Avx2Lanes::<OCT>::new(setup) }.visit::<L>(node, t_max, stack)
+        let lanes = unsafe { avx2::Avx2Lanes::<OCT>::new(setup) };
+        if ANY {
+            lanes.visit_any(node, t_max, stack)
+        } else {
+            (lanes.visit(node, t_max, stack), 0)
+        }
     }
     let mut stack = Stack::new();
     let (next, leaves) =
-        by_octant!(setup.octant, OCT => run::<OCT, L>(setup, node, t_max, &mut stack));
-    (next, leaves, drain(&mut stack))
+        by_octant!(setup.octant, OCT => run::<OCT, ANY>(setup, node, t_max, &mut stack));
+    let drained = if ANY {
+        drain_entries(&mut stack)
+    } else {
+        drain(&mut stack)
+    };
+    (next, leaves, drained)
+}
+
+fn drain_entries(stack: &mut Stack) -> Vec<(u32, u32)> {
+    std::iter::from_fn(|| stack.pop_entry())
+        .map(|c| (c, 0))
+        .collect()
 }
 
 fn drain(stack: &mut Stack) -> Vec<(u32, u32)> {
@@ -130,12 +147,11 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
             let mut t_p = [0f32; WIDTH];
             let m_p = portable.test(node, ray.t_max, &mut t_p);
             let mut stack = Stack::new();
-            let (next_p, no_leaves) = portable.visit::<false>(node, ray.t_max, &mut stack);
-            assert_eq!(no_leaves, 0);
+            let next_p = portable.visit(node, ray.t_max, &mut stack);
             let stack_p = drain(&mut stack);
             pushed += stack_p.len();
-            let (next_l, leaves_l) = portable.visit::<true>(node, ray.t_max, &mut stack);
-            let stack_l = drain(&mut stack);
+            let (next_l, leaves_l) = portable.visit_any(node, ray.t_max, &mut stack);
+            let stack_l = drain_entries(&mut stack);
             #[cfg(target_arch = "x86_64")]
             if has_avx2() {
                 assert_eq!(
@@ -148,11 +164,13 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
                 );
                 compared += 1;
             }
-            // Leaves apart: the same children, less the leaves, which
-            // the mask names.
+            // Any hit: the same children, the leaves named by the mask and
+            // the others in lane order.
             let is_leaf = |c: u32| c & LEAF != 0;
+            let lane = |c: u32| (0..WIDTH).position(|k| node.child[k] == c);
             let mut all: Vec<u32> = next_p.into_iter().collect();
             all.extend(stack_p.iter().map(|e| e.0));
+            all.sort_by_key(|&c| lane(c));
             let mut inner: Vec<u32> = next_l.into_iter().collect();
             inner.extend(stack_l.iter().map(|e| e.0));
             let all_inner: Vec<u32> = all.iter().copied().filter(|&c| !is_leaf(c)).collect();
@@ -161,8 +179,7 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
                 .filter(|&k| leaves_l & (1 << k) != 0)
                 .map(|k| node.child[k])
                 .collect();
-            let mut apart: Vec<u32> = all.iter().copied().filter(|&c| is_leaf(c)).collect();
-            apart.sort_by_key(|&c| (0..WIDTH).position(|k| node.child[k] == c));
+            let apart: Vec<u32> = all.iter().copied().filter(|&c| is_leaf(c)).collect();
             assert_eq!(named, apart);
             // The mask against the scalar slab test of each child, and
             // the children taken: those hit, in the node's order.
