@@ -6,11 +6,13 @@
 //! Volume Hierarchies", 2008; Embree's BVH8).
 //!
 //! The eight slab tests run in one 256-bit register where the CPU has AVX2
-//! (detected at run time, so the binary runs on any x86-64), and as two 4-lane
-//! halves otherwise (glam's `Vec4`: SSE2 on x86-64, scalar elsewhere). Both
-//! compute exactly the same numbers, `(plane − o)·(1/d)` without fused
-//! multiply-add, and visit children in the same order, so images do not
-//! depend on the CPU.
+//! and FMA (detected at run time, so the binary runs on any x86-64), and as
+//! two 4-lane halves otherwise (glam's `Vec4`: SSE2 on x86-64, scalar
+//! elsewhere). Both compute exactly the same numbers (a fused multiply-add
+//! per plane, with constants that make the test take every box the plain
+//! `(plane − o)·(1/d)` takes, see `traverse`; `f32::mul_add` where the
+//! portable path needs it) and visit children in the same order, so images
+//! do not depend on the CPU.
 //!
 //! Collapse: a binary node's children are expanded, largest surface area
 //! first, until the node has eight children or only leaves are left. Each

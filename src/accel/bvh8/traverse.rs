@@ -3,7 +3,8 @@
 //! the eight slab tests of a node at once, then the children hit pushed onto
 //! one stack of nodes and leaves in the node's precomputed order for the
 //! ray's octant, farthest first, so that the nearest is popped next. Where
-//! the CPU has AVX2 a node is a handful of 256-bit operations with no branch
+//! the CPU has AVX2 and FMA a node is a handful of 256-bit operations (one
+//! fused multiply-add per plane, see [`RaySetup::new`]) with no branch
 //! per child (the push is a permute through a table of the 256 masks and one
 //! store of eight lanes); elsewhere two 4-lane halves and a loop over the
 //! children compute the same numbers and push the same entries in the same
@@ -17,32 +18,87 @@
 
 use super::{Bvh8, Bvh8Node, LEAF, STACK, WIDTH};
 use crate::accel::bvh::TraversalCounters;
-use crate::math::{Ray, Vec3};
+use crate::math::{Aabb, Ray, Vec3};
 use glam::Vec4;
 use std::mem::MaybeUninit;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 
 /// What every lane implementation needs of a ray: origin, finite inverse
-/// direction, the rows of the near and far planes, `t_min`, and the octant
-/// of the direction as [`Bvh8Node::order`] numbers them.
+/// direction, `t_min`, the octant of the direction as [`Bvh8Node::order`]
+/// numbers them, and the constants of the fused slab test.
 struct RaySetup {
     o: Vec3,
     inv: Vec3,
     t_min: f32,
     octant: u32,
+    /// Whether the fused test is used (see [`RaySetup::new`]).
+    fused: bool,
+    /// `c_near` and `c_far` of the fused test, per axis.
+    near_c: Vec3,
+    far_c: Vec3,
 }
 
+/// `K = 1 + 2⁻²⁰ = 1 + 16u` (`u = 2⁻²⁴`), by which the fused test widens
+/// `t_max`.
+const WIDEN: f32 = 1.0 + 1.0 / (1 << 20) as f32;
+
 impl RaySetup {
+    /// The setup of `ray` for a tree whose root box is `root`. Slab
+    /// distances are computed one of two ways, chosen per ray, the same on
+    /// every CPU:
+    ///
+    /// - *plain*: `t = (plane − o)·inv`, a subtraction and a product,
+    ///   rounded twice;
+    /// - *fused*: `t = plane·inv − c`, one fused multiply-add (FMA) per
+    ///   plane, as tinybvh and Embree's fast path compute `plane·inv −
+    ///   o·inv`: half the operations and half the latency of a node test.
+    ///
+    /// The fused test takes every box the plain one takes, by constants that
+    /// lean each plane outwards (as pbrt-v4 §6.8 and Ize, "Robust BVH Ray
+    /// Traversal", 2013, pad their tests): `c_near = fl(oi + s_near)` and
+    /// `c_far = fl(oi − s_far)` with `oi = fl(o·inv)`, `s_near = 8u|oi| +
+    /// 2⁻¹²⁶`, `s_far = 8u(|oi| + M) + 2⁻¹²⁶`, `u = 2⁻²⁴`, `M` the largest
+    /// plain `|t|` of the root box's two planes on that axis (every box in
+    /// the tree lies inside it, so `|τ| ≤ M(1 + 2.001u)` for all its
+    /// planes), and `t_max` widened to `fl(K·t_max)`, `K = 1 + 16u`. With
+    /// `τ = (plane − o)·inv` exactly and `P` the plain value (`|P − τ| ≤
+    /// 2.0001u|τ|`): the error of `oi`, `u|o·inv|`, is absolute where `P`'s
+    /// is relative, and the constants outweigh it, so a fused near value is
+    /// at most `τ + u|τ| ≤ g(P)` with `g(x) = x + 3.001u|x|`, and a fused
+    /// far value at least `τ − u|τ| − 2.001u|oi| + s_far(1 − 2u) ≥ g(P)`
+    /// wherever `P ≥ 0` (the `2⁻¹²⁶` covers results in the subnormal
+    /// range). `g` is increasing and `g(x) ≥ x`, so for the plain entry `A
+    /// = max(near, t_min)` and exit `B = min(far, t_max)` the fused entry is
+    /// at most `g(A)`, and where `0 ≤ t_min ≤ A ≤ B` (every far value and
+    /// `t_max` then non-negative) the fused exit is at least `g(B) ≥
+    /// g(A)`: every box the plain test takes is taken, and an entry the
+    /// plain traversal keeps (`A ≤ t_max`) is kept against `fl(K·t_max) ≥
+    /// g(t_max)`. The closest hit, taken over leaves in the same order, is
+    /// then the one the plain traversal finds, or a hit it passed by.
+    ///
+    /// The bound needs `t_min ≥ 0` and finite constants (`oi` and `M`
+    /// below `10³⁶`, which only an origin past `10⁶` on an axis the ray is
+    /// parallel to breaks); other rays keep the plain test.
     #[inline(always)]
-    fn new(ray: &Ray) -> Self {
+    fn new(ray: &Ray, root: &Aabb) -> Self {
         // Finite, so (plane − o)·inv is never 0·∞ = NaN (see `Bvh`).
         let inv = ray.d.recip().clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
+        let oi = ray.o * inv;
+        let m = ((root.min - ray.o) * inv)
+            .abs()
+            .max(((root.max - ray.o) * inv).abs());
+        let eighth = 1.0 / (1 << 21) as f32;
+        let tiny = Vec3::splat(f32::MIN_POSITIVE);
+        let far_s = (oi.abs() + m) * eighth + tiny;
         RaySetup {
             o: ray.o,
             inv,
             t_min: ray.t_min,
             // Bit a set unless inv[a] < 0.
             octant: !inv.cmplt(Vec3::ZERO).bitmask() & 7,
+            fused: ray.t_min >= 0.0 && (oi.abs() + m).max_element() < 1e36,
+            near_c: oi + (oi.abs() * eighth + tiny),
+            far_c: oi - far_s,
         }
     }
 }
@@ -127,16 +183,38 @@ trait NodeVisit {
     /// and the distances, which only closest hits use (tinybvh's
     /// `BVH8_CPU::IsOccluded` does not order either).
     fn visit_any(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> (Option<u32>, u32);
+
+    /// What the visits take as `t_max`, and what entry distances are
+    /// pruned against, for an interval ending at `t_max`: `t_max` itself,
+    /// or `fl(K·t_max)` for the fused test (see [`RaySetup::new`]).
+    fn bound(&self, t_max: f32) -> f32;
 }
 
-/// The eight slab tests as two 4-lane halves.
+/// The eight slab tests as two 4-lane halves, plain or fused; the fused
+/// test computes each lane with `f32::mul_add` (one rounding, as the AVX2
+/// path's FMA): an instruction where the CPU has FMA, a library call where
+/// it has not.
 struct PortableLanes {
     o: [Vec4; 3],
     inv: [Vec4; 3],
+    near_c: [Vec4; 3],
+    far_c: [Vec4; 3],
     near: [usize; 3],
     far: [usize; 3],
     t_min: Vec4,
+    fused: bool,
     shift: u32,
+}
+
+/// `a·b − c` per lane, with one rounding.
+#[inline(always)]
+fn mul_sub4(a: Vec4, b: Vec4, c: Vec4) -> Vec4 {
+    Vec4::new(
+        a.x.mul_add(b.x, -c.x),
+        a.y.mul_add(b.y, -c.y),
+        a.z.mul_add(b.z, -c.z),
+        a.w.mul_add(b.w, -c.w),
+    )
 }
 
 impl PortableLanes {
@@ -146,6 +224,9 @@ impl PortableLanes {
         PortableLanes {
             o: [0, 1, 2].map(|a| Vec4::splat(r.o[a])),
             inv: [0, 1, 2].map(|a| Vec4::splat(r.inv[a])),
+            near_c: [0, 1, 2].map(|a| Vec4::splat(r.near_c[a])),
+            far_c: [0, 1, 2].map(|a| Vec4::splat(r.far_c[a])),
+            fused: r.fused,
             near: std::array::from_fn(|a| a + 3 * negative(a) as usize),
             far: std::array::from_fn(|a| a + 3 * !negative(a) as usize),
             t_min: Vec4::splat(r.t_min),
@@ -154,17 +235,33 @@ impl PortableLanes {
     }
 
     /// The mask of children hit within `[t_min, t_max]` and the entry
-    /// distances: `max` of the near planes' `(plane − o)·inv` and `t_min`
-    /// against `min` of the far planes' and `t_max`.
+    /// distances: `max` of the near planes' distances and `t_min` against
+    /// `min` of the far planes' and `t_max` (already widened by
+    /// [`NodeVisit::bound`] for the fused test).
     #[inline(always)]
     fn test(&self, n: &Bvh8Node, t_max: f32, t_enter: &mut [f32; WIDTH]) -> u32 {
         let t_max = Vec4::splat(t_max);
         let mut mask = 0;
         for half in 0..2 {
             let lanes = |row: usize| Vec4::from_slice(&n.planes[row].0[4 * half..4 * half + 4]);
-            let t = |a: usize, row: usize| (lanes(row) - self.o[a]) * self.inv[a];
-            let (nx, ny, nz) = (t(0, self.near[0]), t(1, self.near[1]), t(2, self.near[2]));
-            let (fx, fy, fz) = (t(0, self.far[0]), t(1, self.far[1]), t(2, self.far[2]));
+            let near = |a: usize| {
+                let row = lanes(self.near[a]);
+                if self.fused {
+                    mul_sub4(row, self.inv[a], self.near_c[a])
+                } else {
+                    (row - self.o[a]) * self.inv[a]
+                }
+            };
+            let far = |a: usize| {
+                let row = lanes(self.far[a]);
+                if self.fused {
+                    mul_sub4(row, self.inv[a], self.far_c[a])
+                } else {
+                    (row - self.o[a]) * self.inv[a]
+                }
+            };
+            let (nx, ny, nz) = (near(0), near(1), near(2));
+            let (fx, fy, fz) = (far(0), far(1), far(2));
             let enter = nx.max(ny).max(nz.max(self.t_min));
             let exit = fx.min(fy).min(fz.min(t_max));
             enter.write_to_slice(&mut t_enter[4 * half..4 * half + 4]);
@@ -175,6 +272,11 @@ impl PortableLanes {
 }
 
 impl NodeVisit for PortableLanes {
+    #[inline(always)]
+    fn bound(&self, t_max: f32) -> f32 {
+        if self.fused { t_max * WIDEN } else { t_max }
+    }
+
     #[inline(always)]
     fn visit(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> Option<u32> {
         let mut t = [0f32; WIDTH];
@@ -232,16 +334,18 @@ const COMPRESS: [[u32; WIDTH]; 256] = {
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{Bvh8Node, COMPRESS, NodeVisit, RaySetup, Stack, WIDTH};
+    use super::{Bvh8Node, COMPRESS, NodeVisit, RaySetup, Stack, WIDEN, WIDTH};
     use std::arch::x86_64::*;
 
-    /// The eight slab tests in one 256-bit register each, and the push as
-    /// permutes. Only made where the CPU has AVX2.
-    /// For rays of octant `OCT` (as [`RaySetup::octant`]), whose near and
-    /// far planes are then known when compiling.
+    /// The eight fused slab tests in one 256-bit register each, and the
+    /// push as permutes. Only made where the CPU has AVX2 and FMA, for rays
+    /// that take the fused test ([`RaySetup::fused`]), of octant `OCT` (as
+    /// [`RaySetup::octant`]), whose near and far planes are then known when
+    /// compiling.
     pub(super) struct Avx2Lanes<const OCT: u32> {
-        o: [__m256; 3],
         inv: [__m256; 3],
+        near_c: [__m256; 3],
+        far_c: [__m256; 3],
         t_min: __m256,
     }
 
@@ -259,15 +363,17 @@ mod avx2 {
         ];
         const SHIFT: i32 = 3 * OCT as i32;
 
-        /// The caller makes sure that the CPU has AVX2, and that the ray is
-        /// of octant `OCT`.
-        #[target_feature(enable = "avx2")]
+        /// The caller makes sure that the CPU has AVX2 and FMA, and that
+        /// the ray is of octant `OCT` and takes the fused test.
+        #[target_feature(enable = "avx2,fma")]
         #[inline]
         pub(super) fn new(r: &RaySetup) -> Self {
-            debug_assert_eq!(r.octant, OCT);
+            debug_assert_eq!((r.octant, r.fused), (OCT, true));
+            let splat = |v: crate::math::Vec3| [0, 1, 2].map(|a| _mm256_set1_ps(v[a]));
             Avx2Lanes {
-                o: [0, 1, 2].map(|a| _mm256_set1_ps(r.o[a])),
-                inv: [0, 1, 2].map(|a| _mm256_set1_ps(r.inv[a])),
+                inv: splat(r.inv),
+                near_c: splat(r.near_c),
+                far_c: splat(r.far_c),
                 t_min: _mm256_set1_ps(r.t_min),
             }
         }
@@ -275,20 +381,23 @@ mod avx2 {
 
     impl<const OCT: u32> Avx2Lanes<OCT> {
         /// The entry distances and the mask of the children hit, as
-        /// [`super::PortableLanes::test`], operation for operation (max and
-        /// min return their second operand for NaN in both).
+        /// [`super::PortableLanes::test`]'s fused test, operation for
+        /// operation (max and min return their second operand for NaN in
+        /// both).
         #[inline(always)]
         fn test(&self, n: &Bvh8Node, t_max: f32) -> (__m256, __m256) {
             // SAFETY (all blocks): an `Avx2Lanes` exists only where the CPU
             // has AVX2, and each row is 8 floats aligned to 32 bytes
             // (`Lanes8`).
             let lanes = |row: usize| unsafe { _mm256_load_ps(n.planes[row].0.as_ptr()) };
-            let t = |a: usize, row: usize| unsafe {
-                _mm256_mul_ps(_mm256_sub_ps(lanes(row), self.o[a]), self.inv[a])
+            let near = |a: usize| unsafe {
+                _mm256_fmsub_ps(lanes(Self::NEAR[a]), self.inv[a], self.near_c[a])
             };
-            let (near, far) = (Self::NEAR, Self::FAR);
-            let (nx, ny, nz) = (t(0, near[0]), t(1, near[1]), t(2, near[2]));
-            let (fx, fy, fz) = (t(0, far[0]), t(1, far[1]), t(2, far[2]));
+            let far = |a: usize| unsafe {
+                _mm256_fmsub_ps(lanes(Self::FAR[a]), self.inv[a], self.far_c[a])
+            };
+            let (nx, ny, nz) = (near(0), near(1), near(2));
+            let (fx, fy, fz) = (far(0), far(1), far(2));
             unsafe {
                 let enter = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, self.t_min));
                 let exit = _mm256_min_ps(
@@ -301,6 +410,11 @@ mod avx2 {
     }
 
     impl<const OCT: u32> NodeVisit for Avx2Lanes<OCT> {
+        #[inline(always)]
+        fn bound(&self, t_max: f32) -> f32 {
+            t_max * WIDEN
+        }
+
         /// As [`super::PortableLanes`]'s: the same entries pushed in the
         /// same order. Inlined into the callers compiled with AVX2 enabled.
         #[inline(always)]
@@ -387,7 +501,7 @@ pub fn force_portable(portable: bool) {
     FORCE_PORTABLE.store(portable, Ordering::Relaxed);
 }
 
-/// Whether the 256-bit node visit can run here (checked once, then cached
+/// Whether the 256-bit node visit (AVX2 and FMA) can run here (checked once, then cached
 /// by the standard library) and is not switched off by [`force_portable`].
 #[inline(always)]
 fn has_avx2() -> bool {
@@ -398,6 +512,7 @@ fn has_avx2() -> bool {
         let detected = match DETECTED.load(Ordering::Relaxed) {
             0 => {
                 let yes = std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
                     && std::arch::is_x86_feature_detected!("popcnt")
                     && std::arch::is_x86_feature_detected!("bmi1");
                 DETECTED.store(1 + yes as u8, Ordering::Relaxed);
@@ -434,6 +549,12 @@ macro_rules! by_octant {
 }
 
 impl Bvh8 {
+    /// The box of everything (empty for an empty tree).
+    #[inline(always)]
+    fn root(&self) -> Aabb {
+        self.bounds.unwrap_or(Aabb::EMPTY)
+    }
+
     /// Closest hit, nearer children first, pruning by the closest `t`; as
     /// [`Bvh::closest`](crate::accel::Bvh::closest).
     #[inline]
@@ -476,9 +597,9 @@ impl Bvh8 {
         if self.nodes.is_empty() {
             return None;
         }
-        let setup = RaySetup::new(ray);
+        let setup = RaySetup::new(ray, &self.root());
         #[cfg(target_arch = "x86_64")]
-        if has_avx2() {
+        if has_avx2() && setup.fused {
             // SAFETY (all): the CPU has AVX2, and the octant is the ray's.
             return unsafe {
                 by_octant!(setup.octant, OCT => self.closest_avx2::<OCT>(&setup, ray.t_max, counters, test))
@@ -488,7 +609,7 @@ impl Bvh8 {
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,popcnt,bmi1")]
+    #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
     fn closest_avx2<const OCT: u32>(
         &self,
         setup: &RaySetup,
@@ -508,6 +629,7 @@ impl Bvh8 {
         lanes: &impl NodeVisit,
     ) -> Option<(u32, f32)> {
         let mut best = None;
+        let mut bound = lanes.bound(t_max);
         let mut stack = Stack::new();
         let (mut visited, mut tests) = (0u64, 0u64);
         let mut entry = 0;
@@ -515,7 +637,7 @@ impl Bvh8 {
             if entry & LEAF == 0 {
                 visited += 1;
                 let node = &self.nodes[entry as usize];
-                if let Some(c) = lanes.visit(node, t_max, &mut stack) {
+                if let Some(c) = lanes.visit(node, bound, &mut stack) {
                     entry = c;
                     continue;
                 }
@@ -524,11 +646,12 @@ impl Bvh8 {
                 tests += count as u64;
                 if let Some(h) = test(first, count, t_max) {
                     (t_max, best) = (h.1, Some(h));
+                    bound = lanes.bound(t_max);
                 }
             }
             // Entries now beyond the closest hit so far are dropped.
             while let Some((c, dist)) = stack.pop() {
-                if dist <= t_max {
+                if dist <= bound {
                     entry = c;
                     continue 'visit;
                 }
@@ -569,9 +692,9 @@ impl Bvh8 {
         if self.nodes.is_empty() {
             return false;
         }
-        let setup = RaySetup::new(ray);
+        let setup = RaySetup::new(ray, &self.root());
         #[cfg(target_arch = "x86_64")]
-        if has_avx2() {
+        if has_avx2() && setup.fused {
             // SAFETY (all): the CPU has AVX2, and the octant is the ray's.
             return unsafe {
                 by_octant!(setup.octant, OCT => self.any_avx2::<OCT>(&setup, ray.t_max, counters, test))
@@ -581,7 +704,7 @@ impl Bvh8 {
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,popcnt,bmi1")]
+    #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
     fn any_avx2<const OCT: u32>(
         &self,
         setup: &RaySetup,
@@ -603,13 +726,14 @@ impl Bvh8 {
         let mut stack = Stack::new();
         let (mut visited, mut tests) = (0u64, 0u64);
         let mut found = false;
+        let bound = lanes.bound(t_max);
         // Only nodes go through the stack: a node's leaves are tested when
         // it is visited, in lane order, which ends occluded rays sooner.
         let mut entry = 0;
         'visit: loop {
             visited += 1;
             let node = &self.nodes[entry as usize];
-            let (next, mut leaves) = lanes.visit_any(node, t_max, &mut stack);
+            let (next, mut leaves) = lanes.visit_any(node, bound, &mut stack);
             while leaves != 0 {
                 let k = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;

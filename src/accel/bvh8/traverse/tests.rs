@@ -54,7 +54,7 @@ fn traversal_matches_brute_force_and_tree_is_valid() {
             brute.is_some()
         );
         // The path taken where the CPU lacks AVX2.
-        let portable = PortableLanes::new(&RaySetup::new(&ray));
+        let portable = PortableLanes::new(&RaySetup::new(&ray, &wide.root()));
         let nearest = |first: u32, count: u32, t_max: f32| {
             assert!(count >= 1 && count as usize <= crate::accel::bvh::MAX_LEAF);
             (first..first + count)
@@ -132,6 +132,9 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
     let mut rng = Pcg32::new(5, 3);
     let mut compared = 0;
     let mut pushed = 0;
+    // Children tested by plain and by fused rays; those only the fused
+    // test takes.
+    let (mut tested, mut extra) = ([0usize; 2], 0);
     for i in 0..20_000 {
         let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - Vec3::splat(2.0);
         let mut d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - Vec3::splat(0.5);
@@ -141,25 +144,33 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
         }
         let mut ray = Ray::new(o, d);
         ray.t_max = rng.next_f32() * 20.0;
-        let setup = RaySetup::new(&ray);
+        // Some rays take the plain test (the fused one needs t_min ≥ 0;
+        // an exit in [t_min, 0) would take a child the scalar test,
+        // which wants exits ≥ 0, does not).
+        if i % 5 == 1 {
+            ray.t_min = -f32::MIN_POSITIVE;
+        }
+        let setup = RaySetup::new(&ray, &wide.root());
         let portable = PortableLanes::new(&setup);
+        // The visits take t_max widened as traversal gives it.
+        let bound = portable.bound(ray.t_max);
         for node in wide.nodes.iter().step_by(17) {
             let mut t_p = [0f32; WIDTH];
-            let m_p = portable.test(node, ray.t_max, &mut t_p);
+            let m_p = portable.test(node, bound, &mut t_p);
             let mut stack = Stack::new();
-            let next_p = portable.visit(node, ray.t_max, &mut stack);
+            let next_p = portable.visit(node, bound, &mut stack);
             let stack_p = drain(&mut stack);
             pushed += stack_p.len();
-            let (next_l, leaves_l) = portable.visit_any(node, ray.t_max, &mut stack);
+            let (next_l, leaves_l) = portable.visit_any(node, bound, &mut stack);
             let stack_l = drain_entries(&mut stack);
             #[cfg(target_arch = "x86_64")]
-            if has_avx2() {
+            if has_avx2() && setup.fused {
                 assert_eq!(
-                    visit_avx2::<false>(&setup, node, ray.t_max),
+                    visit_avx2::<false>(&setup, node, bound),
                     (next_p, 0, stack_p.clone())
                 );
                 assert_eq!(
-                    visit_avx2::<true>(&setup, node, ray.t_max),
+                    visit_avx2::<true>(&setup, node, bound),
                     (next_l, leaves_l, stack_l.clone())
                 );
                 compared += 1;
@@ -181,20 +192,30 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
                 .collect();
             let apart: Vec<u32> = all.iter().copied().filter(|&c| is_leaf(c)).collect();
             assert_eq!(named, apart);
-            // The mask against the scalar slab test of each child, and
-            // the children taken: those hit, in the node's order.
+            // The mask against the scalar slab test of each child (the
+            // plain test gives the same; the fused one every child it
+            // gives, and a few more), and the children taken: those hit,
+            // in the node's order.
             let mut hit = Vec::new();
             for k in 0..WIDTH {
+                let taken = m_p & (1 << k) != 0;
                 if node.child[k] == EMPTY {
-                    assert_eq!(m_p & (1 << k), 0);
+                    assert!(!taken);
                     continue;
                 }
                 let slab = node
                     .child_bounds(k)
                     .slab(ray.o, ray.inv_d())
                     .is_some_and(|h| h.t_enter.max(ray.t_min) <= h.t_exit.min(ray.t_max));
-                assert_eq!(m_p & (1 << k) != 0, slab, "child {k}");
-                if slab {
+                if setup.fused {
+                    assert!(taken || !slab, "child {k} missed by the fused test");
+                    tested[1] += 1;
+                    extra += (taken && !slab) as usize;
+                } else {
+                    assert_eq!(taken, slab, "child {k}");
+                    tested[0] += 1;
+                }
+                if taken {
                     hit.push(k);
                 }
             }
@@ -215,6 +236,12 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
         }
     }
     assert!(pushed > 1000, "visits with several children hit: {pushed}");
+    assert!(tested[0] > 10_000 && tested[1] > 100_000, "{tested:?}");
+    assert!(
+        extra * 10_000 < tested[1],
+        "{extra} of {} widened in",
+        tested[1]
+    );
     if has_avx2() {
         assert!(compared > 0);
     }
@@ -257,7 +284,7 @@ fn whole_traversals_agree_with_and_without_avx2() {
                 })
             } else {
                 let mut c2 = TraversalCounters::default();
-                let portable = PortableLanes::new(&RaySetup::new(&ray));
+                let portable = PortableLanes::new(&RaySetup::new(&ray, &wide.root()));
                 let r = wide.closest_with(
                     ray.t_max,
                     &mut c2,
@@ -276,4 +303,98 @@ fn whole_traversals_agree_with_and_without_avx2() {
         }
     }
     assert_eq!(results[0], results[1]);
+}
+
+/// The fused slab test takes every child the plain one takes, and keeps
+/// every entry the plain one keeps, on rays aimed at the corners and edges
+/// of boxes (where the two roundings disagree most), nearly parallel to an
+/// axis or exactly so, at scales 1e-3 to 1e6 and up to 1e6 from the
+/// origin, with `t_max` at the plain test's own entry distances.
+#[test]
+fn fused_test_takes_every_child_the_plain_one_takes() {
+    let mut rng = Pcg32::new(31, 7);
+    let (mut checked, mut widened) = (0usize, 0usize);
+    for (scale, offset) in [
+        (1e-3f32, 0.0f32),
+        (1.0, 0.0),
+        (1.0, 1e3),
+        (1e3, 1e6),
+        (1e6, 1e6),
+    ] {
+        let boxes: Vec<Aabb> = (0..300)
+            .map(|_| {
+                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0 * scale
+                    + Vec3::splat(offset);
+                let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale;
+                Aabb::new(c - e, c + e)
+            })
+            .collect();
+        let wide = Bvh8::from_binary(&Bvh::build(&boxes));
+        for i in 0..3000 {
+            let target = &boxes[i % boxes.len()];
+            // A corner, or a point on an edge.
+            let mut pick = |a: usize| {
+                if rng.next_f32() < 0.5 {
+                    target.min[a]
+                } else {
+                    target.max[a]
+                }
+            };
+            let mut aim = Vec3::new(pick(0), pick(1), pick(2));
+            if i % 2 == 1 {
+                let a = i % 3;
+                aim[a] = target.min[a] + (target.max[a] - target.min[a]) * rng.next_f32();
+            }
+            let o = Vec3::splat(offset)
+                + (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 30.0
+                    - Vec3::splat(10.0))
+                    * scale;
+            let mut d = aim - o;
+            match i % 10 {
+                0 => d[i % 3] *= 1e-4,
+                5 => d[i % 3] = 0.0,
+                _ => {}
+            }
+            if d == Vec3::ZERO {
+                continue;
+            }
+            let mut ray = Ray::new(o, d);
+            for t_max in [f32::INFINITY, 0.0, 1.0] {
+                ray.t_max = t_max;
+                let setup = RaySetup::new(&ray, &wide.root());
+                if !setup.fused {
+                    // Parallel to an axis with the origin past 10⁶.
+                    assert!(offset >= 1e6 && d.abs().min_element() == 0.0, "{ray:?}");
+                    continue;
+                }
+                let mut plain = RaySetup::new(&ray, &wide.root());
+                plain.fused = false;
+                let (plain, fused) = (PortableLanes::new(&plain), PortableLanes::new(&setup));
+                for node in &wide.nodes {
+                    let (mut tp, mut tf) = ([0f32; WIDTH], [0f32; WIDTH]);
+                    let mp = plain.test(node, t_max, &mut tp);
+                    let mf = fused.test(node, fused.bound(t_max), &mut tf);
+                    assert_eq!(mp & !mf, 0, "{ray:?}: plain {mp:08b}, fused {mf:08b}");
+                    checked += mp.count_ones() as usize;
+                    widened += (mf & !mp).count_ones() as usize;
+                    // With t_max at each child's plain entry: still taken,
+                    // and the entry kept by the pruning bound.
+                    for k in (0..WIDTH).filter(|&k| mp & (1 << k) != 0) {
+                        let t = tp[k];
+                        let (mut up, mut uf) = ([0f32; WIDTH], [0f32; WIDTH]);
+                        let mp = plain.test(node, t, &mut up);
+                        let mf = fused.test(node, fused.bound(t), &mut uf);
+                        assert_eq!(mp & !mf, 0, "{ray:?} to {t}");
+                        assert!(mp & (1 << k) != 0, "{ray:?}: child {k} at its own entry");
+                        assert!(uf[k] <= fused.bound(t), "{ray:?} pruned at {t}");
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked > 10_000, "children taken: {checked}");
+    assert!(
+        widened < checked / 10,
+        "{widened} widened in, {checked} taken"
+    );
 }
