@@ -600,7 +600,8 @@ impl Bvh8 {
         let setup = RaySetup::new(ray, &self.root());
         #[cfg(target_arch = "x86_64")]
         if has_avx2() && setup.fused {
-            // SAFETY (all): the CPU has AVX2, and the octant is the ray's.
+            // SAFETY (all): the CPU has AVX2 and FMA (`has_avx2`), the
+            // octant is the ray's, and the ray takes the fused test.
             return unsafe {
                 by_octant!(setup.octant, OCT => self.closest_avx2::<OCT>(&setup, ray.t_max, counters, test))
             };
@@ -695,7 +696,8 @@ impl Bvh8 {
         let setup = RaySetup::new(ray, &self.root());
         #[cfg(target_arch = "x86_64")]
         if has_avx2() && setup.fused {
-            // SAFETY (all): the CPU has AVX2, and the octant is the ray's.
+            // SAFETY (all): the CPU has AVX2 and FMA (`has_avx2`), the
+            // octant is the ray's, and the ray takes the fused test.
             return unsafe {
                 by_octant!(setup.octant, OCT => self.any_avx2::<OCT>(&setup, ray.t_max, counters, test))
             };
