@@ -244,22 +244,17 @@ impl PortableLanes {
         let mut mask = 0;
         for half in 0..2 {
             let lanes = |row: usize| Vec4::from_slice(&n.planes[row].0[4 * half..4 * half + 4]);
-            let near = |a: usize| {
-                let row = lanes(self.near[a]);
+            // Axis `a`'s distances to the planes of `row`; `c` is the fused
+            // test's constant for that side.
+            let t = |a: usize, row: usize, c: &[Vec4; 3]| {
                 if self.fused {
-                    mul_sub4(row, self.inv[a], self.near_c[a])
+                    mul_sub4(lanes(row), self.inv[a], c[a])
                 } else {
-                    (row - self.o[a]) * self.inv[a]
+                    (lanes(row) - self.o[a]) * self.inv[a]
                 }
             };
-            let far = |a: usize| {
-                let row = lanes(self.far[a]);
-                if self.fused {
-                    mul_sub4(row, self.inv[a], self.far_c[a])
-                } else {
-                    (row - self.o[a]) * self.inv[a]
-                }
-            };
+            let near = |a: usize| t(a, self.near[a], &self.near_c);
+            let far = |a: usize| t(a, self.far[a], &self.far_c);
             let (nx, ny, nz) = (near(0), near(1), near(2));
             let (fx, fy, fz) = (far(0), far(1), far(2));
             let enter = nx.max(ny).max(nz.max(self.t_min));
