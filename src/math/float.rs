@@ -23,20 +23,17 @@ pub fn gamma(n: i32) -> f32 {
 /// `roundss`): a float of magnitude 2^23 or more is an integer already,
 /// and below that the truncation to i32 is exact and off by one only for
 /// negative non-integers.
+///
+/// Without branches: checkerboards floor coordinates of either sign in no
+/// predictable order, and a mispredicted branch costs more than both sides.
 #[inline]
 pub fn floor(x: f32) -> f32 {
-    if x.abs() >= 8_388_608.0 || x.is_nan() {
-        return x;
-    }
+    // NaN and magnitudes from 2^31 on saturate here; they are kept below.
     let t = x as i32 as f32;
-    if t == x {
-        // Integral: x itself, which keeps the sign of −0.
-        x
-    } else if t > x {
-        t - 1.0
-    } else {
-        t
-    }
+    let down = t - f32::from(u8::from(t > x));
+    // Integral (which keeps the sign of −0), already an integer, or NaN: x.
+    let keep = (t == x) | (x.abs() >= 8_388_608.0) | x.is_nan();
+    std::hint::select_unpredictable(keep, x, down)
 }
 
 /// Offsets a surface point `p`, known to within `p_err` per component, along the
@@ -56,21 +53,74 @@ pub fn offset_ray_origin(p: Vec3, p_err: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     let d = n.abs().dot(p_err).max(MIN_OFFSET);
     let n = if w.dot(n) < 0.0 { -n } else { n };
     let po = p + n * d;
-    let mut out = po.to_array();
-    let n = n.to_array();
-    for i in 0..3 {
-        if n[i] > 0.0 {
-            out[i] = out[i].next_up();
-        } else if n[i] < 0.0 {
-            out[i] = out[i].next_down();
-        }
-    }
-    Vec3::from_array(out)
+    Vec3::new(nudge(po.x, n.x), nudge(po.y, n.y), nudge(po.z, n.z))
+}
+
+/// `x.next_up()` where `dir > 0`, `x.next_down()` where `dir < 0`, else `x`,
+/// bit for bit, without branches: the signs of a normal's components follow
+/// no pattern from one hit to the next, and `next_up`/`next_down` branch on
+/// sign, zero and infinity.
+///
+/// On the bits, a step away from 0 adds 1 and a step towards 0 subtracts 1
+/// (the sign bit stays); ±0 steps to the smallest subnormal of `dir`'s
+/// sign, an infinity stepped further stays, and NaN stays NaN.
+#[inline]
+pub fn nudge(x: f32, dir: f32) -> f32 {
+    let bits = x.to_bits();
+    let magnitude = bits & 0x7fff_ffff;
+    let (up, down) = (dir > 0.0, dir < 0.0);
+    let negative = bits >> 31 != 0;
+    let away = (up & !negative) | (down & negative);
+    let towards = (up & negative) | (down & !negative);
+    let stepped = bits
+        .wrapping_add(u32::from(away))
+        .wrapping_sub(u32::from(towards));
+    let from_zero = if down { 0x8000_0001 } else { 1 };
+    let stepped =
+        std::hint::select_unpredictable(magnitude == 0 && (up | down), from_zero, stepped);
+    let stays = (magnitude > 0x7f80_0000) | ((magnitude == 0x7f80_0000) & away);
+    f32::from_bits(std::hint::select_unpredictable(stays, bits, stepped))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn nudge_is_next_up_or_next_down_bit_for_bit() {
+        let check = |x: f32| {
+            for dir in [1.0f32, -1.0, 0.0, -0.0, f32::NAN, 1e-45, -f32::INFINITY] {
+                let want = if dir > 0.0 {
+                    x.next_up()
+                } else if dir < 0.0 {
+                    x.next_down()
+                } else {
+                    x
+                };
+                let got = nudge(x, dir);
+                assert!(
+                    got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                    "{x:e} towards {dir}: {got:e} vs {want:e}"
+                );
+            }
+        };
+        for bits in (0..=u32::MAX).step_by(101) {
+            check(f32::from_bits(bits));
+        }
+        for bits in [
+            0,
+            1,
+            2,
+            0x007f_ffff,
+            0x0080_0000,
+            0x7f7f_ffff,
+            0x7f80_0000,
+            0x7fc0_0000,
+        ] {
+            check(f32::from_bits(bits));
+            check(-f32::from_bits(bits));
+        }
+    }
 
     #[test]
     fn floor_is_floorf_bit_for_bit() {

@@ -63,7 +63,7 @@ impl Texture {
 /// NaN), without the slow `fmodf` it calls.
 #[inline]
 fn is_even(cells: f32) -> bool {
-    cells.is_finite() && floor(cells * 0.5) * 2.0 == cells
+    cells.is_finite() & (floor(cells * 0.5) * 2.0 == cells)
 }
 
 #[cfg(test)]

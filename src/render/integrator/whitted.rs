@@ -429,21 +429,12 @@ pub(super) fn local_terms(
         return l;
     }
     let emitters = &scene.emitters;
-    let samples = emitters
-        .delta_lights
-        .iter()
-        .map(|&i| (i as usize, 1.0f32, (0.5f32, 0.5f32)))
-        .chain(area.into_iter().flat_map(|(n, rot)| {
-            (0..n).filter_map(move |j| {
-                let (u0, u1, u2) = lattice_point(j, n, rot);
-                let (k, pmf) = emitters.area_select.sample(u0)?;
-                Some((emitters.area_lights[k] as usize, pmf * n as f32, (u1, u2)))
-            })
-        }));
-    for (index, scale, u) in samples {
+    // One light sample: its shadow ray and gain handed to `each`, if it
+    // faces the surface.
+    let mut term = |l: &mut Color, index: usize, scale: f32, u: (f32, f32)| {
         let light = &emitters.lights[index];
         let Some(ls) = light.sample_li(si.p, u) else {
-            continue;
+            return;
         };
         let wi = ls.wi;
         let (irradiance, shadow_ray) = match ls.target {
@@ -457,11 +448,11 @@ pub(super) fn local_terms(
         if let Light::Area(_) | Light::Sphere { .. } = light
             && !irradiance.is_finite()
         {
-            continue;
+            return;
         }
         let cos = n_facing.dot(wi);
         if cos <= 0.0 {
-            continue;
+            return;
         }
         let n_dot_h = if m.specular > 0.0 {
             let h = (wi + wo).normalize_or_zero();
@@ -470,7 +461,7 @@ pub(super) fn local_terms(
             0.0
         };
         each(
-            &mut l,
+            l,
             LightTerm {
                 light: index,
                 ray: shadow_ray,
@@ -483,6 +474,24 @@ pub(super) fn local_terms(
                 },
             },
         );
+    };
+    // The point and directional lights, then the area-light samples (a
+    // plain loop each: most scenes have no area lights to sample).
+    for &i in &emitters.delta_lights {
+        term(&mut l, i as usize, 1.0, (0.5, 0.5));
+    }
+    if let Some((n, rot)) = area {
+        for j in 0..n {
+            let (u0, u1, u2) = lattice_point(j, n, rot);
+            if let Some((k, pmf)) = emitters.area_select.sample(u0) {
+                term(
+                    &mut l,
+                    emitters.area_lights[k] as usize,
+                    pmf * n as f32,
+                    (u1, u2),
+                );
+            }
+        }
     }
     l
 }
