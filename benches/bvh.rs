@@ -18,6 +18,7 @@ use criterion::{
     BatchSize, BenchmarkGroup, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main,
 };
 use glam::Vec3;
+use glint::accel::PACKET;
 use glint::geometry::testgen::bumpy_icosphere;
 use glint::geometry::{Mesh, TraceCounters};
 use glint::math::Ray;
@@ -170,6 +171,50 @@ fn trace_rays(
     });
 }
 
+/// The primary rays again, traced as packets of 4×4 pixels
+/// (`Mesh::intersect_packet`): `bvh/primary_packets/MESH`, in rays per
+/// second like `bvh/primary/MESH`.
+fn trace_packets(g: &mut BenchmarkGroup<WallTime>, name: &str, mesh: &Mesh, primary: &[Ray]) {
+    const _: () = assert!(WIDTH.is_multiple_of(4) && HEIGHT.is_multiple_of(4) && PACKET == 16);
+    let (w, h) = (WIDTH as usize, HEIGHT as usize);
+    let blocks: Vec<Ray> = (0..h / 4)
+        .flat_map(|by| (0..w / 4).map(move |bx| (bx, by)))
+        .flat_map(|(bx, by)| (0..16).map(move |i| primary[(4 * by + i / 4) * w + 4 * bx + i % 4]))
+        .collect();
+    let trace = |chunk: &[Ray], c: &mut TraceCounters| {
+        let mut hits = [None; PACKET];
+        chunk
+            .chunks(PACKET)
+            .map(|p| {
+                mesh.intersect_packet(p, c, &mut hits[..p.len()]);
+                hits[..p.len()].iter().filter(|h| h.is_some()).count()
+            })
+            .sum::<usize>()
+    };
+    let mut c = TraceCounters::default();
+    let hits = trace(&blocks, &mut c);
+    let single = primary
+        .par_iter()
+        .filter(|r| mesh.intersect_object(r, &mut TraceCounters::default()).is_some())
+        .count();
+    assert_eq!(hits, single, "packets and single rays hit as often");
+    let n = blocks.len().max(1) as f64;
+    eprintln!(
+        "  primary in 4x4 packets: {:.1} node visits, {:.1} triangle tests per ray",
+        c.bvh.nodes_visited as f64 / n,
+        c.bvh.primitive_tests as f64 / n
+    );
+    g.throughput(Throughput::Elements(blocks.len() as u64));
+    g.bench_function(BenchmarkId::new("primary_packets", name), |b| {
+        b.iter(|| {
+            blocks
+                .par_chunks(4096)
+                .map(|chunk| trace(chunk, &mut TraceCounters::default()))
+                .sum::<usize>()
+        })
+    });
+}
+
 fn bench(c: &mut Criterion) {
     for (name, v, f, view, up) in meshes() {
         let mesh = Mesh::new(v.clone(), f.clone(), Vec::new(), Vec::new()).expect("valid mesh");
@@ -204,6 +249,7 @@ fn bench(c: &mut Criterion) {
         trace_rays(&mut g, "shadow", &name, &rays.shadow, |r, c| {
             mesh.occludes_object(r, c)
         });
+        trace_packets(&mut g, &name, &mesh, &rays.primary);
         g.finish();
     }
 }

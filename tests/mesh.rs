@@ -597,3 +597,81 @@ fn crossings_of_many_surfaces_and_from_inside() {
     let expected = 0.1 + 19.0 * 0.2 + 0.15;
     assert!((inside - expected).abs() < 1e-4, "{inside} vs {expected}");
 }
+
+/// Packets of up to 16 rays (`Mesh::intersect_packet`) against the same
+/// rays one by one: coherent 4×4 blocks of camera rays, incoherent rays of
+/// mixed octants, segments cut short, and rays that the packet hands to the
+/// single-ray traversal (`t_min < 0`). Each ray must get the same `t`, bit
+/// for bit, and the same triangle or another one hit at exactly that `t`.
+#[test]
+fn packets_match_single_rays() {
+    let meshes = [
+        mesh(icosphere(3, 2.0)),
+        mesh(torus(2.0, 0.6, 40, 20)),
+        random_soup(3000, 5),
+        mesh(torus(2.0, 0.6, 96, 48)),
+    ];
+    for (k, m) in meshes.iter().enumerate() {
+        let mut rng = Pcg32::new(7, 20 + k as u64);
+        for p in 0..600 {
+            let n = 1 + rng.next_u32() as usize % 16;
+            let rays: Vec<Ray> = match p % 3 {
+                // A 4×4 block of a pinhole camera's rays.
+                0 => {
+                    let eye = random_in(&mut rng, 1.0) + Vec3::new(0.0, 0.0, 7.0);
+                    let (cx, cy) = (rng.next_f32() * 2.0 - 1.0, rng.next_f32() * 2.0 - 1.0);
+                    let step = 0.002 + 0.02 * rng.next_f32();
+                    (0..n)
+                        .map(|i| {
+                            let (x, y) = ((i % 4) as f32, (i / 4) as f32);
+                            let d = Vec3::new(cx + step * x, cy + step * y, -2.5);
+                            Ray::new(eye, d)
+                        })
+                        .collect()
+                }
+                // Incoherent: every octant.
+                1 => (0..n)
+                    .map(|_| {
+                        let o = random_in(&mut rng, 8.0);
+                        Ray::new(o, random_in(&mut rng, 3.0) - o)
+                    })
+                    .collect(),
+                // Shared origin, cut short, some with t_min < 0.
+                _ => {
+                    let o = random_in(&mut rng, 6.0);
+                    (0..n)
+                        .map(|_| {
+                            let mut r = Ray::new(o, random_in(&mut rng, 2.5) - o);
+                            r.t_max = 0.3 + rng.next_f32();
+                            if rng.next_u32().is_multiple_of(4) {
+                                r.t_min = -1.0;
+                            }
+                            r
+                        })
+                        .collect()
+                }
+            };
+            let mut got = vec![None; n];
+            let mut c = TraceCounters::default();
+            m.intersect_packet(&rays, &mut c, &mut got);
+            for (ray, g) in rays.iter().zip(&got) {
+                let want = m.intersect_object(ray, &mut c);
+                match (g, want) {
+                    (Some(g), Some(w)) => {
+                        assert_eq!(g.t.to_bits(), w.t.to_bits(), "mesh {k}, packet {p}");
+                        if g.prim != w.prim {
+                            let [a, b, cc] = m.triangles[g.prim as usize]
+                                .map(|x| Vec3::from(m.positions[x as usize]));
+                            let t = intersect_mt(ray.o, ray.d, a, b, cc, ray.t_min, ray.t_max);
+                            assert_eq!(t.map(|h| h.t), Some(w.t), "mesh {k}, packet {p}");
+                        } else {
+                            assert_eq!((g.u, g.v), (w.u, w.v), "mesh {k}, packet {p}");
+                        }
+                    }
+                    (None, None) => {}
+                    _ => panic!("mesh {k}, packet {p}: {g:?} vs {want:?}"),
+                }
+            }
+        }
+    }
+}

@@ -12,5 +12,5 @@ mod bvh8;
 mod tlas;
 
 pub use bvh::{Bvh, BvhNode, PrimRef, TraversalCounters};
-pub use bvh8::{Bvh8, Bvh8Node, MAX_PRIMITIVES, force_portable};
+pub use bvh8::{Bvh8, Bvh8Node, MAX_PRIMITIVES, PACKET, force_portable};
 pub use tlas::Tlas;

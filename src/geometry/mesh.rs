@@ -3,7 +3,7 @@
 
 use super::triangle::{LANES, TriangleLanes, intersect_mt_lanes, intersect_watertight};
 use super::{ShapeHit, SurfacePoint, TraceCounters};
-use crate::accel::{Bvh, Bvh8, MAX_PRIMITIVES, PrimRef};
+use crate::accel::{Bvh, Bvh8, MAX_PRIMITIVES, PACKET, PrimRef};
 use crate::math::{Aabb, Ray, Transform, Vec3, gamma, normalize_robust, triangle_normal};
 use glam::{Affine3A, Mat3A, Vec2, Vec4};
 use rayon::prelude::*;
@@ -296,9 +296,7 @@ impl Mesh {
     }
 
     /// Closest hit of an object-space ray: `(prim, t, b1, b2)`. Triangles
-    /// are tested four at a time ([`intersect_mt_lanes`]); the closures are
-    /// inlined into the traversal loop (whose AVX version is a function of
-    /// its own), which keeps the ray in registers.
+    /// are tested four at a time ([`intersect_mt_lanes`]).
     #[inline]
     pub fn intersect_object(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
         let mut bary = (0.0, 0.0);
@@ -306,26 +304,7 @@ impl Mesh {
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |first, count, mut t_max| {
-                let mut best = None;
-                self.leaf_lanes(first, count, |lanes, own, prims| {
-                    let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, t_max);
-                    // The nearest lane, the first of equals (spare lanes are
-                    // masked off).
-                    let mut bits = h.mask & own;
-                    while bits != 0 {
-                        let i = bits.trailing_zeros() as usize;
-                        bits &= bits - 1;
-                        if h.t[i] < t_max {
-                            t_max = h.t[i];
-                            bary = (h.b1[i], h.b2[i]);
-                            best = Some((prims[i], t_max));
-                        }
-                    }
-                    false
-                });
-                best
-            },
+            |first, count, t_max| self.leaf_closest(ray, first, count, t_max, &mut bary),
         )?;
         Some(ShapeHit {
             t,
@@ -333,6 +312,66 @@ impl Mesh {
             u: bary.0,
             v: bary.1,
         })
+    }
+
+    /// [`Mesh::intersect_object`] for up to [`PACKET`] coherent rays at
+    /// once ([`Bvh8::closest_packet`]: the same `t` for every ray; where
+    /// two triangles are hit at exactly that `t`, either may be returned).
+    pub fn intersect_packet(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraceCounters,
+        out: &mut [Option<ShapeHit>],
+    ) {
+        assert!(rays.len() <= PACKET && out.len() == rays.len());
+        let mut bary = [(0.0, 0.0); PACKET];
+        let mut hits = [None; PACKET];
+        self.bvh.closest_packet(
+            rays,
+            &mut counters.bvh,
+            #[inline(always)]
+            |r, first, count, t_max| self.leaf_closest(&rays[r], first, count, t_max, &mut bary[r]),
+            &mut hits[..rays.len()],
+        );
+        for (r, o) in out.iter_mut().enumerate() {
+            *o = hits[r].map(|(prim, t)| ShapeHit {
+                t,
+                prim,
+                u: bary[r].0,
+                v: bary[r].1,
+            });
+        }
+    }
+
+    /// The closest hit before `t_max` among a leaf's triangles, the first
+    /// of equals, with its barycentrics put in `bary`.
+    #[inline(always)]
+    fn leaf_closest(
+        &self,
+        ray: &Ray,
+        first: u32,
+        count: u32,
+        mut t_max: f32,
+        bary: &mut (f32, f32),
+    ) -> Option<(u32, f32)> {
+        let mut best = None;
+        self.leaf_lanes(first, count, |lanes, own, prims| {
+            let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, t_max);
+            // The nearest lane, the first of equals (spare lanes are
+            // masked off).
+            let mut bits = h.mask & own;
+            while bits != 0 {
+                let i = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if h.t[i] < t_max {
+                    t_max = h.t[i];
+                    *bary = (h.b1[i], h.b2[i]);
+                    best = Some((prims[i], t_max));
+                }
+            }
+            false
+        });
+        best
     }
 
     /// Whether an object-space ray's segment meets the mesh (any hit).

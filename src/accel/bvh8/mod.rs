@@ -20,8 +20,10 @@
 //! directions, so that traversal orders them without sorting.
 
 mod collapse;
+mod packet;
 mod traverse;
 
+pub use packet::PACKET;
 pub use traverse::force_portable;
 
 use super::bvh::{MAX_DEPTH, MAX_LEAF};

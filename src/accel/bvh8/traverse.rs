@@ -26,21 +26,21 @@ use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 /// What every lane implementation needs of a ray: origin, finite inverse
 /// direction, `t_min`, the octant of the direction as [`Bvh8Node::order`]
 /// numbers them, and the constants of the fused slab test.
-struct RaySetup {
+pub(super) struct RaySetup {
     o: Vec3,
-    inv: Vec3,
-    t_min: f32,
-    octant: u32,
+    pub(super) inv: Vec3,
+    pub(super) t_min: f32,
+    pub(super) octant: u32,
     /// Whether the fused test is used (see [`RaySetup::new`]).
-    fused: bool,
+    pub(super) fused: bool,
     /// `c_near` and `c_far` of the fused test, per axis.
-    near_c: Vec3,
-    far_c: Vec3,
+    pub(super) near_c: Vec3,
+    pub(super) far_c: Vec3,
 }
 
 /// `K = 1 + 2⁻²⁰ = 1 + 16u` (`u = 2⁻²⁴`), by which the fused test widens
 /// `t_max`.
-const WIDEN: f32 = 1.0 + 1.0 / (1 << 20) as f32;
+pub(super) const WIDEN: f32 = 1.0 + 1.0 / (1 << 20) as f32;
 
 impl RaySetup {
     /// The setup of `ray` for a tree whose root box is `root`. Slab
@@ -80,7 +80,7 @@ impl RaySetup {
     /// below `10³⁶`, which only an origin past `10⁶` on an axis the ray is
     /// parallel to breaks); other rays keep the plain test.
     #[inline(always)]
-    fn new(ray: &Ray, root: &Aabb) -> Self {
+    pub(super) fn new(ray: &Ray, root: &Aabb) -> Self {
         // Finite, so (plane − o)·inv is never 0·∞ = NaN (see `Bvh`).
         let inv = ray.d.recip().clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
         let oi = ray.o * inv;
@@ -496,6 +496,11 @@ pub fn force_portable(portable: bool) {
     FORCE_PORTABLE.store(portable, Ordering::Relaxed);
 }
 
+/// Whether [`force_portable`] is on (packets are then traced ray by ray).
+pub(super) fn portable_forced() -> bool {
+    FORCE_PORTABLE.load(Ordering::Relaxed)
+}
+
 /// Whether the 256-bit node visit (AVX2 and FMA) can run here (checked once, then cached
 /// by the standard library) and is not switched off by [`force_portable`].
 #[inline(always)]
@@ -546,7 +551,7 @@ macro_rules! by_octant {
 impl Bvh8 {
     /// The box of everything (empty for an empty tree).
     #[inline(always)]
-    fn root(&self) -> Aabb {
+    pub(super) fn root(&self) -> Aabb {
         self.bounds.unwrap_or(Aabb::EMPTY)
     }
 
