@@ -33,6 +33,10 @@ const HEIGHT: u32 = 1080;
 struct Rays {
     primary: Vec<Ray>,
     shadow: Vec<Ray>,
+    /// The primary rays in 4×4 pixel blocks, and their shadow rays in
+    /// that order (for packets).
+    primary_blocks: Vec<Ray>,
+    shadow_blocks: Vec<Ray>,
     hit_fraction: f64,
 }
 
@@ -59,24 +63,36 @@ fn rays(mesh: &Mesh, view: Vec3, up: Vec3) -> Rays {
         })
         .collect();
     // From each hit whose viewer-facing normal faces the light.
-    let shadow: Vec<Ray> = primary
-        .par_iter()
-        .filter_map(|ray| {
-            let h = mesh.intersect_object(ray, &mut TraceCounters::default())?;
-            let s = mesh.surface_object(&h);
-            let p = ray.at(h.t);
-            let n = if s.n.dot(ray.d) > 0.0 { -s.n } else { s.n };
-            (n.dot(light - p) > 0.0).then(|| {
-                let o = p + n * (1e-4 * r as f32);
-                Ray {
-                    o,
-                    d: light - o,
-                    t_min: 0.0,
-                    t_max: 0.9999,
-                }
+    let shadow_of = |primary: &[Ray]| -> Vec<Ray> {
+        primary
+            .par_iter()
+            .filter_map(|ray| {
+                let h = mesh.intersect_object(ray, &mut TraceCounters::default())?;
+                let s = mesh.surface_object(&h);
+                let p = ray.at(h.t);
+                let n = if s.n.dot(ray.d) > 0.0 { -s.n } else { s.n };
+                (n.dot(light - p) > 0.0).then(|| {
+                    let o = p + n * (1e-4 * r as f32);
+                    Ray {
+                        o,
+                        d: light - o,
+                        t_min: 0.0,
+                        t_max: 0.9999,
+                    }
+                })
             })
-        })
+            .collect()
+    };
+    let shadow = shadow_of(&primary);
+    // The same rays in 4×4 pixel blocks, for packets; the shadow rays of
+    // their hits in that order.
+    let (w, h) = (WIDTH as usize, HEIGHT as usize);
+    let primary_blocks: Vec<Ray> = (0..h / 4)
+        .flat_map(|by| (0..w / 4).map(move |bx| (bx, by)))
+        .flat_map(|(bx, by)| (0..16).map(move |i| (4 * by + i / 4) * w + 4 * bx + i % 4))
+        .map(|i| primary[i])
         .collect();
+    let shadow_blocks = shadow_of(&primary_blocks);
     let hit_count = primary
         .par_iter()
         .filter(|r| mesh.occludes_object(r, &mut TraceCounters::default()))
@@ -85,6 +101,8 @@ fn rays(mesh: &Mesh, view: Vec3, up: Vec3) -> Rays {
         hit_fraction: hit_count as f64 / primary.len() as f64,
         shadow,
         primary,
+        primary_blocks,
+        shadow_blocks,
     }
 }
 
@@ -171,17 +189,23 @@ fn trace_rays(
     });
 }
 
-/// The primary rays again, traced as packets of 4×4 pixels
-/// (`Mesh::intersect_packet`): `bvh/primary_packets/MESH`, in rays per
-/// second like `bvh/primary/MESH`.
-fn trace_packets(g: &mut BenchmarkGroup<WallTime>, name: &str, mesh: &Mesh, primary: &[Ray]) {
-    const _: () = assert!(WIDTH.is_multiple_of(4) && HEIGHT.is_multiple_of(4) && PACKET == 16);
-    let (w, h) = (WIDTH as usize, HEIGHT as usize);
-    let blocks: Vec<Ray> = (0..h / 4)
-        .flat_map(|by| (0..w / 4).map(move |bx| (bx, by)))
-        .flat_map(|(bx, by)| (0..16).map(move |i| primary[(4 * by + i / 4) * w + 4 * bx + i % 4]))
-        .collect();
-    let trace = |chunk: &[Ray], c: &mut TraceCounters| {
+/// A packet benchmark: its name, its rays, how to trace a chunk of them
+/// (returning the hits) and how to trace one alone (whether it hits).
+type PacketCase<'a> = (
+    &'a str,
+    &'a [Ray],
+    &'a (dyn Fn(&[Ray], &mut TraceCounters) -> usize + Sync),
+    &'a dyn Fn(&Ray) -> bool,
+);
+
+/// The primary and shadow rays again, traced as packets of 16 rays
+/// (`Mesh::intersect_packet`, `Mesh::occludes_packet`): the primary rays
+/// of 4×4 pixel blocks, the shadow rays of their hits in that order.
+/// `bvh/primary_packets/MESH` and `bvh/shadow_packets/MESH`, in rays per
+/// second like the single-ray figures, after checking that the packets
+/// hit as often as single rays.
+fn trace_packets(g: &mut BenchmarkGroup<WallTime>, name: &str, mesh: &Mesh, rays: &Rays) {
+    let closest = |chunk: &[Ray], c: &mut TraceCounters| {
         let mut hits = [None; PACKET];
         chunk
             .chunks(PACKET)
@@ -191,28 +215,45 @@ fn trace_packets(g: &mut BenchmarkGroup<WallTime>, name: &str, mesh: &Mesh, prim
             })
             .sum::<usize>()
     };
-    let mut c = TraceCounters::default();
-    let hits = trace(&blocks, &mut c);
-    let single = primary
-        .par_iter()
-        .filter(|r| mesh.intersect_object(r, &mut TraceCounters::default()).is_some())
-        .count();
-    assert_eq!(hits, single, "packets and single rays hit as often");
-    let n = blocks.len().max(1) as f64;
-    eprintln!(
-        "  primary in 4x4 packets: {:.1} node visits, {:.1} triangle tests per ray",
-        c.bvh.nodes_visited as f64 / n,
-        c.bvh.primitive_tests as f64 / n
-    );
-    g.throughput(Throughput::Elements(blocks.len() as u64));
-    g.bench_function(BenchmarkId::new("primary_packets", name), |b| {
-        b.iter(|| {
-            blocks
-                .par_chunks(4096)
-                .map(|chunk| trace(chunk, &mut TraceCounters::default()))
-                .sum::<usize>()
-        })
-    });
+    let any = |chunk: &[Ray], c: &mut TraceCounters| {
+        let mut blocked = [false; PACKET];
+        chunk
+            .chunks(PACKET)
+            .map(|p| {
+                mesh.occludes_packet(p, c, &mut blocked[..p.len()]);
+                blocked[..p.len()].iter().filter(|&&b| b).count()
+            })
+            .sum::<usize>()
+    };
+    let cases: [PacketCase; 2] = [
+        ("primary_packets", &rays.primary_blocks, &closest, &|r| {
+            mesh.intersect_object(r, &mut TraceCounters::default())
+                .is_some()
+        }),
+        ("shadow_packets", &rays.shadow_blocks, &any, &|r| {
+            mesh.occludes_object(r, &mut TraceCounters::default())
+        }),
+    ];
+    for (kind, list, trace, single) in cases {
+        let mut c = TraceCounters::default();
+        let hits = trace(list, &mut c);
+        let want = list.iter().filter(|r| single(r)).count();
+        assert_eq!(hits, want, "{kind}: packets and single rays hit as often");
+        let n = list.len().max(1) as f64;
+        eprintln!(
+            "  {kind}: {:.1} node visits, {:.1} triangle tests per ray",
+            c.bvh.nodes_visited as f64 / n,
+            c.bvh.primitive_tests as f64 / n
+        );
+        g.throughput(Throughput::Elements(list.len() as u64));
+        g.bench_function(BenchmarkId::new(kind, name), |b| {
+            b.iter(|| {
+                list.par_chunks(4096)
+                    .map(|chunk| trace(chunk, &mut TraceCounters::default()))
+                    .sum::<usize>()
+            })
+        });
+    }
 }
 
 fn bench(c: &mut Criterion) {
@@ -249,7 +290,7 @@ fn bench(c: &mut Criterion) {
         trace_rays(&mut g, "shadow", &name, &rays.shadow, |r, c| {
             mesh.occludes_object(r, c)
         });
-        trace_packets(&mut g, &name, &mesh, &rays.primary);
+        trace_packets(&mut g, &name, &mesh, &rays);
         g.finish();
     }
 }

@@ -598,11 +598,12 @@ fn crossings_of_many_surfaces_and_from_inside() {
     assert!((inside - expected).abs() < 1e-4, "{inside} vs {expected}");
 }
 
-/// Packets of up to 16 rays (`Mesh::intersect_packet`) against the same
-/// rays one by one: coherent 4×4 blocks of camera rays, incoherent rays of
+/// Packets of up to 16 rays (`Mesh::intersect_packet` and
+/// `Mesh::occludes_packet`) against the same rays one by one: coherent 4×4 blocks of camera rays, incoherent rays of
 /// mixed octants, segments cut short, and rays that the packet hands to the
 /// single-ray traversal (`t_min < 0`). Each ray must get the same `t`, bit
-/// for bit, and the same triangle or another one hit at exactly that `t`.
+/// for bit, and the same triangle or another one hit at exactly that `t`;
+/// and the same answer to whether anything blocks its segment.
 #[test]
 fn packets_match_single_rays() {
     let meshes = [
@@ -654,6 +655,11 @@ fn packets_match_single_rays() {
             let mut got = vec![None; n];
             let mut c = TraceCounters::default();
             m.intersect_packet(&rays, &mut c, &mut got);
+            let mut blocked = vec![false; n];
+            m.occludes_packet(&rays, &mut c, &mut blocked);
+            for (ray, b) in rays.iter().zip(&blocked) {
+                assert_eq!(*b, m.occludes_object(ray, &mut c), "mesh {k}, packet {p}");
+            }
             for (ray, g) in rays.iter().zip(&got) {
                 let want = m.intersect_object(ray, &mut c);
                 match (g, want) {

@@ -343,6 +343,27 @@ impl Mesh {
         }
     }
 
+    /// [`Mesh::occludes_object`] for up to [`PACKET`] coherent rays at once
+    /// ([`Bvh8::any_packet`]): the same answers.
+    pub fn occludes_packet(&self, rays: &[Ray], counters: &mut TraceCounters, out: &mut [bool]) {
+        self.bvh.any_packet(
+            rays,
+            &mut counters.bvh,
+            #[inline(always)]
+            |r, first, count| self.leaf_occludes(&rays[r], first, count),
+            out,
+        );
+    }
+
+    /// Whether the ray's segment meets one of a leaf's triangles.
+    #[inline(always)]
+    fn leaf_occludes(&self, ray: &Ray, first: u32, count: u32) -> bool {
+        self.leaf_lanes(first, count, |lanes, own, _| {
+            let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, ray.t_max);
+            h.mask & own != 0
+        })
+    }
+
     /// The closest hit before `t_max` among a leaf's triangles, the first
     /// of equals, with its barycentrics put in `bary`.
     #[inline(always)]
@@ -381,12 +402,7 @@ impl Mesh {
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |first, count| {
-                self.leaf_lanes(first, count, |lanes, own, _| {
-                    let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, ray.t_max);
-                    h.mask & own != 0
-                })
-            },
+            |first, count| self.leaf_occludes(ray, first, count),
         )
     }
 
@@ -594,9 +610,36 @@ impl MeshInstance {
         self.mesh.intersect_object(&self.object_ray(ray), counters)
     }
 
+    /// [`MeshInstance::intersect`] for up to [`PACKET`] rays at once
+    /// ([`Mesh::intersect_packet`]).
+    pub fn intersect_packet(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraceCounters,
+        out: &mut [Option<ShapeHit>],
+    ) {
+        let mut object = [Ray::new(Vec3::ZERO, Vec3::X); PACKET];
+        for (o, r) in object.iter_mut().zip(rays) {
+            *o = self.object_ray(r);
+        }
+        self.mesh
+            .intersect_packet(&object[..rays.len()], counters, out);
+    }
+
     #[inline]
     pub fn occludes(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
         self.mesh.occludes_object(&self.object_ray(ray), counters)
+    }
+
+    /// [`MeshInstance::occludes`] for up to [`PACKET`] rays at once
+    /// ([`Mesh::occludes_packet`]).
+    pub fn occludes_packet(&self, rays: &[Ray], counters: &mut TraceCounters, out: &mut [bool]) {
+        let mut object = [Ray::new(Vec3::ZERO, Vec3::X); PACKET];
+        for (o, r) in object.iter_mut().zip(rays) {
+            *o = self.object_ray(r);
+        }
+        self.mesh
+            .occludes_packet(&object[..rays.len()], counters, out);
     }
 
     #[inline(never)]

@@ -24,7 +24,7 @@ pub use material::{Material, MaterialKind};
 pub use mesh_scene::{MeshSceneError, mesh_scene};
 pub use texture::{CheckerMode, Texture};
 
-use crate::accel::{Bvh, Tlas, TraversalCounters};
+use crate::accel::{Bvh, PACKET, Tlas, TraversalCounters};
 pub use crate::geometry::TraceCounters;
 use crate::geometry::batch::{
     BATCH, Closest, RayBatch, any_batch, closest_batch, sphere_glass_lanes,
@@ -369,13 +369,85 @@ impl Scene {
         self.intersect_tlas(*ray, counters)
     }
 
+    /// [`Scene::intersect`] for each ray of `rays` (at most [`PACKET`],
+    /// coherent ones, such as neighbouring camera rays) into `out`: in a
+    /// scene of few objects, each mesh takes all the rays at once as a
+    /// packet ([`MeshInstance::intersect_packet`]); other shapes, and
+    /// scenes with a top-level BVH, take them one by one. Each ray gets the
+    /// same `t`, object and counts of object tests as from
+    /// `Scene::intersect`; where two triangles of a mesh are hit at exactly
+    /// that `t`, either may be named. Scenes with a top-level BVH trace the
+    /// mesh merged from their small meshes (see [`Merged`]) as a packet, and
+    /// the rest ray by ray.
+    pub fn intersect_packet(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraceCounters,
+        out: &mut [Option<Hit>],
+    ) {
+        assert!(rays.len() <= PACKET && out.len() == rays.len());
+        if !self.linear {
+            // The merged mesh as a packet, the rest ray by ray.
+            let mut merged = [None; PACKET];
+            let merged = &mut merged[..rays.len()];
+            if let Some(m) = &self.merged {
+                m.mesh.intersect_packet(rays, counters, merged);
+            }
+            for ((o, r), h) in out.iter_mut().zip(rays).zip(merged) {
+                *o = self.intersect_tlas_after(*r, *h, counters);
+            }
+            return;
+        }
+        let mut segments = [Ray::new(Vec3::ZERO, Vec3::X); PACKET];
+        segments[..rays.len()].copy_from_slice(rays);
+        let segments = &mut segments[..rays.len()];
+        out.fill(None);
+        let mut hits = [None; PACKET];
+        for (i, o) in self.objects.iter().enumerate() {
+            let hits = &mut hits[..rays.len()];
+            match &o.shape {
+                Shape::Mesh(m) => m.intersect_packet(segments, counters, hits),
+                shape => {
+                    for (h, r) in hits.iter_mut().zip(segments.iter()) {
+                        *h = shape.intersect(r, counters);
+                    }
+                }
+            }
+            for ((h, r), out) in hits.iter().zip(segments.iter_mut()).zip(out.iter_mut()) {
+                if let Some(h) = *h {
+                    r.t_max = h.t;
+                    *out = Some(Hit {
+                        t: h.t,
+                        object: i as u32,
+                        shape: h,
+                    });
+                }
+            }
+        }
+        counters.intersection_tests += (self.objects.len() * rays.len()) as u64;
+    }
+
     /// [`Scene::intersect`] through the top-level BVH (many objects).
     #[inline(never)]
-    fn intersect_tlas(&self, mut ray: Ray, counters: &mut TraceCounters) -> Option<Hit> {
+    fn intersect_tlas(&self, ray: Ray, counters: &mut TraceCounters) -> Option<Hit> {
+        let merged = self
+            .merged
+            .as_ref()
+            .and_then(|m| m.mesh.intersect_object(&ray, counters));
+        self.intersect_tlas_after(ray, merged, counters)
+    }
+
+    /// [`Scene::intersect_tlas`] given the ray's closest hit on the merged
+    /// mesh, if any.
+    #[inline(always)]
+    fn intersect_tlas_after(
+        &self,
+        mut ray: Ray,
+        merged: Option<ShapeHit>,
+        counters: &mut TraceCounters,
+    ) -> Option<Hit> {
         let mut closest = None;
-        if let Some(m) = &self.merged
-            && let Some(h) = m.mesh.intersect_object(&ray, counters)
-        {
+        if let (Some(m), Some(h)) = (&self.merged, merged) {
             ray.t_max = h.t;
             closest = Some(m.hit(h));
         }

@@ -23,11 +23,15 @@
 //! returned may differ, as it may between two traversal orders. Rays that
 //! the fused test does not take, and packets on CPUs without AVX-512, are
 //! traced one by one.
+//!
+//! Any hits (shadow rays) go the same way without the order and the
+//! distances, as the single-ray any-hit traversal does: a node's leaves are
+//! tested at once for the rays that reach them, and a ray leaves the
+//! packet as soon as something blocks it.
 
-use super::{Bvh8, Bvh8Node, LEAF, STACK};
+use super::{Bvh8, Bvh8Node, LEAF};
 use crate::accel::bvh::TraversalCounters;
 use crate::math::Ray;
-use std::mem::MaybeUninit;
 
 /// Rays of a packet: one AVX-512 register of f32.
 pub const PACKET: usize = 16;
@@ -52,8 +56,8 @@ impl Bvh8 {
         }
         let mut packed = 0u16;
         #[cfg(target_arch = "x86_64")]
-        if has_avx512() {
-            // SAFETY: the CPU has AVX-512F and FMA (`has_avx512`).
+        if avx512::available() {
+            // SAFETY: the CPU has what `avx512` needs.
             packed = unsafe { self.closest_avx512(rays, counters, &mut test, out) };
         }
         // The rest one by one.
@@ -66,6 +70,36 @@ impl Bvh8 {
         }
     }
 
+    /// Whether each ray of `rays` (at most [`PACKET`]) meets a primitive,
+    /// as [`Bvh8::any_leaves`] finds it, into `out`: `test(r, first,
+    /// count)` says whether ray `r` meets one of a leaf's primitives.
+    pub fn any_packet(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraversalCounters,
+        mut test: impl FnMut(usize, u32, u32) -> bool,
+        out: &mut [bool],
+    ) {
+        assert!(rays.len() <= PACKET && rays.len() == out.len());
+        out.fill(false);
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut packed = 0u16;
+        #[cfg(target_arch = "x86_64")]
+        if avx512::available() {
+            // SAFETY: the CPU has what `avx512` needs.
+            packed = unsafe { self.any_avx512(rays, counters, &mut test, out) };
+        }
+        for (r, ray) in rays.iter().enumerate() {
+            if packed & 1 << r == 0 {
+                out[r] = self.any_leaves(ray, counters, |first, count| test(r, first, count));
+            }
+        }
+    }
+
+    /// The closest hits of the rays of `rays` that take the fused test,
+    /// into `out`; returns the mask of those rays.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,fma,popcnt,bmi1")]
     fn closest_avx512(
@@ -76,82 +110,19 @@ impl Bvh8 {
         out: &mut [Option<(u32, f32)>],
     ) -> u16 {
         use std::arch::x86_64::*;
-        let n = rays.len();
-        if n == 0 {
+        let lanes = avx512::Lanes16::new(rays, &self.root());
+        if lanes.active == 0 {
             return 0;
         }
-        // Lane r: ray r's value (lanes from `n` on repeat the last ray's).
-        let lane = |f: &dyn Fn(&Ray) -> f32| -> __m512 {
-            let v: [f32; PACKET] = std::array::from_fn(|r| f(&rays[r.min(n - 1)]));
-            // SAFETY: 16 floats.
-            unsafe { _mm512_loadu_ps(v.as_ptr()) }
-        };
-        let o = [0, 1, 2].map(|a| lane(&|r| r.o[a]));
-        let t_min = lane(&|r| r.t_min);
-        // `RaySetup::new` for all rays at once, operation for operation.
-        let inv = [0, 1, 2].map(|a| {
-            let inv = _mm512_div_ps(_mm512_set1_ps(1.0), lane(&|r| r.d[a]));
-            _mm512_min_ps(
-                _mm512_max_ps(inv, _mm512_set1_ps(-1e30)),
-                _mm512_set1_ps(1e30),
-            )
-        });
-        let root = self.root();
-        let abs = |v: __m512| _mm512_abs_ps(v);
-        let eighth = _mm512_set1_ps(1.0 / (1 << 21) as f32);
-        let tiny = _mm512_set1_ps(f32::MIN_POSITIVE);
-        let mut near_c = [_mm512_setzero_ps(); 3];
-        let mut far_c = [_mm512_setzero_ps(); 3];
-        // Rays that take the fused test (the others are traced alone).
-        let mut active = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(t_min, _mm512_setzero_ps());
-        active &= ((1u32 << n) - 1) as u16;
-        for a in 0..3 {
-            let oi = _mm512_mul_ps(o[a], inv[a]);
-            let plane = |p: f32| {
-                abs(_mm512_mul_ps(
-                    _mm512_sub_ps(_mm512_set1_ps(p), o[a]),
-                    inv[a],
-                ))
-            };
-            let m = _mm512_max_ps(plane(root.min[a]), plane(root.max[a]));
-            let reach = _mm512_add_ps(abs(oi), m);
-            let far_s = _mm512_add_ps(_mm512_mul_ps(reach, eighth), tiny);
-            let near_s = _mm512_add_ps(_mm512_mul_ps(abs(oi), eighth), tiny);
-            near_c[a] = _mm512_add_ps(oi, near_s);
-            far_c[a] = _mm512_sub_ps(oi, far_s);
-            active &= _mm512_cmp_ps_mask::<_CMP_LT_OQ>(reach, _mm512_set1_ps(1e36));
-        }
-        if active == 0 {
-            return 0;
-        }
-        // Rays with a negative direction on an axis: their near plane is the max.
-        let negative: [__mmask16; 3] =
-            [0, 1, 2].map(|a| _mm512_cmp_ps_mask::<_CMP_LT_OQ>(inv[a], _mm512_setzero_ps()));
-        // The first ray's octant orders the children (bit a: d[a] ≥ 0).
-        let first = active.trailing_zeros();
-        let octant = (0..3).fold(0, |q, a| q | u32::from(negative[a] >> first & 1 == 0) << a);
-        let shift = 3 * octant;
+        let shift = 3 * lanes.octant;
         let mut t_max: [f32; PACKET] =
             std::array::from_fn(|r| rays.get(r).map_or(f32::INFINITY, |ray| ray.t_max));
-        // SAFETY: 16 floats.
-        let widen = |t: &[f32; PACKET]| unsafe {
-            _mm512_mul_ps(
-                _mm512_loadu_ps(t.as_ptr()),
-                _mm512_set1_ps(super::traverse::WIDEN),
-            )
-        };
-        let mut bound = widen(&t_max);
+        let mut bound = avx512::widen(&t_max);
         let mut best = [None; PACKET];
-
         // The stack: entries, their rays, their rays' entry distances.
-        // (Not initialised: zeroing 33 kB would cost more than a packet's
-        // traversal; an entry is read only after it is written.)
-        let mut entries = [const { MaybeUninit::<u32>::uninit() }; STACK];
-        let mut masks = [const { MaybeUninit::<u16>::uninit() }; STACK];
-        let mut dists = [const { MaybeUninit::<__m512>::uninit() }; STACK];
-        let mut len = 0usize;
+        let mut stack = avx512::Stack::new();
         let (mut visited, mut tests) = (0u64, 0u64);
-        let (mut entry, mut mask) = (0u32, active);
+        let (mut entry, mut mask) = (0u32, lanes.active);
         'visit: loop {
             if entry & LEAF == 0 {
                 visited += u64::from(mask.count_ones());
@@ -160,40 +131,19 @@ impl Bvh8 {
                 let mut hit = [0u16; 8];
                 let mut enter = [_mm512_setzero_ps(); 8];
                 for k in 0..8 {
-                    if node.child[k] == super::EMPTY {
-                        continue;
+                    if node.child[k] != super::EMPTY {
+                        (hit[k], enter[k]) = lanes.test(node, k, mask, bound);
                     }
-                    let plane = |row: usize| _mm512_set1_ps(node.planes[row].0[k]);
-                    let t = |a: usize, near: bool| {
-                        let (lo, hi) = (plane(a), plane(a + 3));
-                        // Near: the min plane, or the max where d[a] < 0.
-                        let p = if near {
-                            _mm512_mask_blend_ps(negative[a], lo, hi)
-                        } else {
-                            _mm512_mask_blend_ps(negative[a], hi, lo)
-                        };
-                        let c = if near { near_c[a] } else { far_c[a] };
-                        _mm512_fmsub_ps(p, inv[a], c)
-                    };
-                    let (nx, ny, nz) = (t(0, true), t(1, true), t(2, true));
-                    let (fx, fy, fz) = (t(0, false), t(1, false), t(2, false));
-                    let e = _mm512_max_ps(_mm512_max_ps(nx, ny), _mm512_max_ps(nz, t_min));
-                    let x = _mm512_min_ps(_mm512_min_ps(fx, fy), _mm512_min_ps(fz, bound));
-                    hit[k] = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(mask, e, x);
-                    enter[k] = e;
                 }
-                // Nearest first for the leader's octant: push the others
-                // farthest first.
+                // Nearest first for the first ray's octant: push the
+                // others farthest first.
                 let mut next = None;
                 for j in (0..8).rev() {
                     let k = (node.order[j] >> shift & 7) as usize;
                     if hit[k] != 0
                         && let Some(previous) = next.replace(k)
                     {
-                        entries[len].write(node.child[previous]);
-                        masks[len].write(hit[previous]);
-                        dists[len].write(enter[previous]);
-                        len += 1;
+                        stack.push(node.child[previous], hit[previous], enter[previous]);
                     }
                 }
                 if let Some(k) = next {
@@ -214,21 +164,12 @@ impl Bvh8 {
                     }
                 }
                 if changed {
-                    bound = widen(&t_max);
+                    bound = avx512::widen(&t_max);
                 }
             }
             // Entries go on with the rays whose closest hit so far is not
             // before them.
-            while len > 0 {
-                len -= 1;
-                // SAFETY: entries below `len` were written.
-                let (e, m, d) = unsafe {
-                    (
-                        entries[len].assume_init(),
-                        masks[len].assume_init(),
-                        dists[len].assume_init(),
-                    )
-                };
+            while let Some((e, m, d)) = stack.pop() {
                 let m = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(m, d, bound);
                 if m != 0 {
                     (entry, mask) = (e, m);
@@ -240,23 +181,281 @@ impl Bvh8 {
         counters.nodes_visited += visited;
         counters.primitive_tests += tests;
         for (r, o) in out.iter_mut().enumerate() {
-            if active & 1 << r != 0 {
+            if lanes.active & 1 << r != 0 {
                 *o = best[r];
             }
         }
-        active
+        lanes.active
+    }
+
+    /// The any hits of the rays of `rays` that take the fused test, into
+    /// `out`; returns the mask of those rays.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,fma,popcnt,bmi1")]
+    fn any_avx512(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraversalCounters,
+        test: &mut impl FnMut(usize, u32, u32) -> bool,
+        out: &mut [bool],
+    ) -> u16 {
+        use std::arch::x86_64::*;
+        let lanes = avx512::Lanes16::new(rays, &self.root());
+        if lanes.active == 0 {
+            return 0;
+        }
+        let t_max: [f32; PACKET] =
+            std::array::from_fn(|r| rays.get(r).map_or(f32::INFINITY, |ray| ray.t_max));
+        let bound = avx512::widen(&t_max);
+        // Only nodes go through the stack (distances unused).
+        let mut stack = avx512::Stack::new();
+        let (mut visited, mut tests) = (0u64, 0u64);
+        let mut blocked = 0u16;
+        let (mut entry, mut mask) = (0u32, lanes.active);
+        'visit: loop {
+            visited += u64::from(mask.count_ones());
+            let node = &self.nodes[entry as usize];
+            let mut next = None;
+            for k in (0..8).rev() {
+                let child = node.child[k];
+                if child == super::EMPTY {
+                    continue;
+                }
+                let (hit, _) = lanes.test(node, k, mask & !blocked, bound);
+                if hit == 0 {
+                    continue;
+                }
+                if child & LEAF == 0 {
+                    if let Some((c, m)) = next.replace((child, hit)) {
+                        stack.push(c, m, _mm512_setzero_ps());
+                    }
+                    continue;
+                }
+                let (first, count) = Bvh8Node::leaf_range(child);
+                let mut rays_left = hit & !blocked;
+                while rays_left != 0 {
+                    let r = rays_left.trailing_zeros() as usize;
+                    rays_left &= rays_left - 1;
+                    tests += u64::from(count);
+                    if test(r, first, count) {
+                        blocked |= 1 << r;
+                    }
+                }
+                if blocked == lanes.active {
+                    break 'visit;
+                }
+            }
+            if let Some((c, m)) = next
+                && m & !blocked != 0
+            {
+                (entry, mask) = (c, m & !blocked);
+                continue;
+            }
+            while let Some((e, m, _)) = stack.pop() {
+                if m & !blocked != 0 {
+                    (entry, mask) = (e, m & !blocked);
+                    continue 'visit;
+                }
+            }
+            break;
+        }
+        counters.nodes_visited += visited;
+        counters.primitive_tests += tests;
+        for (r, o) in out.iter_mut().enumerate() {
+            if lanes.active & 1 << r != 0 {
+                *o = blocked & 1 << r != 0;
+            }
+        }
+        lanes.active
     }
 }
 
-/// Whether the AVX-512 packet traversal can run here (AVX-512F, FMA,
-/// POPCNT and BMI1; checked once, then cached by the standard library), and
-/// the portable path is not forced (see [`super::force_portable`]).
 #[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn has_avx512() -> bool {
-    std::arch::is_x86_feature_detected!("avx512f")
-        && std::arch::is_x86_feature_detected!("fma")
-        && std::arch::is_x86_feature_detected!("popcnt")
-        && std::arch::is_x86_feature_detected!("bmi1")
-        && !super::traverse::portable_forced()
+mod avx512 {
+    use super::PACKET;
+    use crate::accel::bvh8::traverse::WIDEN;
+    use crate::accel::bvh8::{Bvh8Node, STACK};
+    use crate::math::{Aabb, Ray};
+    use std::arch::x86_64::*;
+    use std::mem::MaybeUninit;
+
+    /// Whether the packet traversals can run here (AVX-512F, FMA, POPCNT
+    /// and BMI1; checked once, then cached by the standard library), and
+    /// the portable path is not forced (see
+    /// [`crate::accel::force_portable`]).
+    #[inline(always)]
+    pub(super) fn available() -> bool {
+        std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("fma")
+            && std::arch::is_x86_feature_detected!("popcnt")
+            && std::arch::is_x86_feature_detected!("bmi1")
+            && !crate::accel::bvh8::traverse::portable_forced()
+    }
+
+    /// Each ray's fused-test constants in its lane (`RaySetup::new` for
+    /// sixteen rays at once, operation for operation), the rays that take
+    /// that test, and the first one's octant.
+    pub(super) struct Lanes16 {
+        inv: [__m512; 3],
+        near_c: [__m512; 3],
+        far_c: [__m512; 3],
+        t_min: __m512,
+        /// Rays with `d[a] < 0`: their near plane on axis `a` is the max.
+        negative: [__mmask16; 3],
+        /// The rays that take the fused test (the others are traced alone).
+        pub(super) active: u16,
+        pub(super) octant: u32,
+    }
+
+    impl Lanes16 {
+        /// The caller makes sure the CPU has AVX-512F and FMA.
+        #[target_feature(enable = "avx512f,fma")]
+        #[inline]
+        pub(super) fn new(rays: &[Ray], root: &Aabb) -> Lanes16 {
+            let n = rays.len();
+            // Lane r: ray r's value (lanes from `n` on repeat the last ray's).
+            let lane = |f: &dyn Fn(&Ray) -> f32| -> __m512 {
+                let v: [f32; PACKET] = std::array::from_fn(|r| f(&rays[r.min(n - 1)]));
+                // SAFETY: 16 floats.
+                unsafe { _mm512_loadu_ps(v.as_ptr()) }
+            };
+            let mut lanes = Lanes16 {
+                inv: [_mm512_setzero_ps(); 3],
+                near_c: [_mm512_setzero_ps(); 3],
+                far_c: [_mm512_setzero_ps(); 3],
+                t_min: _mm512_setzero_ps(),
+                negative: [0; 3],
+                active: 0,
+                octant: 0,
+            };
+            if n == 0 {
+                return lanes;
+            }
+            lanes.t_min = lane(&|r| r.t_min);
+            let mut active = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(lanes.t_min, _mm512_setzero_ps());
+            active &= ((1u32 << n) - 1) as u16;
+            let eighth = _mm512_set1_ps(1.0 / (1 << 21) as f32);
+            let tiny = _mm512_set1_ps(f32::MIN_POSITIVE);
+            for a in 0..3 {
+                let o = lane(&|r| r.o[a]);
+                let inv = _mm512_div_ps(_mm512_set1_ps(1.0), lane(&|r| r.d[a]));
+                let inv = _mm512_min_ps(
+                    _mm512_max_ps(inv, _mm512_set1_ps(-1e30)),
+                    _mm512_set1_ps(1e30),
+                );
+                let oi = _mm512_mul_ps(o, inv);
+                let plane =
+                    |p: f32| _mm512_abs_ps(_mm512_mul_ps(_mm512_sub_ps(_mm512_set1_ps(p), o), inv));
+                let m = _mm512_max_ps(plane(root.min[a]), plane(root.max[a]));
+                let reach = _mm512_add_ps(_mm512_abs_ps(oi), m);
+                let far_s = _mm512_add_ps(_mm512_mul_ps(reach, eighth), tiny);
+                let near_s = _mm512_add_ps(_mm512_mul_ps(_mm512_abs_ps(oi), eighth), tiny);
+                lanes.inv[a] = inv;
+                lanes.near_c[a] = _mm512_add_ps(oi, near_s);
+                lanes.far_c[a] = _mm512_sub_ps(oi, far_s);
+                lanes.negative[a] = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(inv, _mm512_setzero_ps());
+                active &= _mm512_cmp_ps_mask::<_CMP_LT_OQ>(reach, _mm512_set1_ps(1e36));
+            }
+            lanes.active = active;
+            // Bit a: d[a] ≥ 0, as `RaySetup::octant`.
+            let first = active.trailing_zeros() % PACKET as u32;
+            lanes.octant = (0..3).fold(0, |q, a| {
+                q | u32::from(lanes.negative[a] >> first & 1 == 0) << a
+            });
+            lanes
+        }
+
+        /// Child `k` of `node` against the rays of `mask` whose intervals
+        /// end at `bound` (widened): the rays that enter its box, and every
+        /// lane's entry distance.
+        #[inline(always)]
+        pub(super) fn test(
+            &self,
+            node: &Bvh8Node,
+            k: usize,
+            mask: u16,
+            bound: __m512,
+        ) -> (u16, __m512) {
+            // SAFETY (all): a `Lanes16` exists only where the CPU has AVX-512F and FMA.
+            let plane = |row: usize| unsafe { _mm512_set1_ps(node.planes[row].0[k]) };
+            let t = |a: usize, near: bool| unsafe {
+                let (lo, hi) = (plane(a), plane(a + 3));
+                // Near: the min plane, or the max where d[a] < 0.
+                let (p, c) = if near {
+                    (
+                        _mm512_mask_blend_ps(self.negative[a], lo, hi),
+                        self.near_c[a],
+                    )
+                } else {
+                    (
+                        _mm512_mask_blend_ps(self.negative[a], hi, lo),
+                        self.far_c[a],
+                    )
+                };
+                _mm512_fmsub_ps(p, self.inv[a], c)
+            };
+            let (nx, ny, nz) = (t(0, true), t(1, true), t(2, true));
+            let (fx, fy, fz) = (t(0, false), t(1, false), t(2, false));
+            unsafe {
+                let enter = _mm512_max_ps(_mm512_max_ps(nx, ny), _mm512_max_ps(nz, self.t_min));
+                let exit = _mm512_min_ps(_mm512_min_ps(fx, fy), _mm512_min_ps(fz, bound));
+                (
+                    _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(mask, enter, exit),
+                    enter,
+                )
+            }
+        }
+    }
+
+    /// `t_max` widened as the fused test widens it (`NodeVisit::bound`).
+    #[inline(always)]
+    pub(super) fn widen(t_max: &[f32; PACKET]) -> __m512 {
+        // SAFETY: only called from functions compiled with AVX-512F; 16 floats.
+        unsafe { _mm512_mul_ps(_mm512_loadu_ps(t_max.as_ptr()), _mm512_set1_ps(WIDEN)) }
+    }
+
+    /// The packets' stack: entries, their rays, and their rays' entry
+    /// distances. Not initialised (zeroing 33 kB would cost more than a
+    /// packet's traversal): an entry is read only after it is written.
+    pub(super) struct Stack {
+        entries: [MaybeUninit<u32>; STACK],
+        masks: [MaybeUninit<u16>; STACK],
+        dists: [MaybeUninit<__m512>; STACK],
+        len: usize,
+    }
+
+    impl Stack {
+        #[inline(always)]
+        pub(super) fn new() -> Stack {
+            Stack {
+                entries: [const { MaybeUninit::uninit() }; STACK],
+                masks: [const { MaybeUninit::uninit() }; STACK],
+                dists: [const { MaybeUninit::uninit() }; STACK],
+                len: 0,
+            }
+        }
+
+        /// Pushes an entry (indexing checks the bound; `STACK` covers the
+        /// deepest tree, as for single rays).
+        #[inline(always)]
+        pub(super) fn push(&mut self, entry: u32, mask: u16, dist: __m512) {
+            self.entries[self.len].write(entry);
+            self.masks[self.len].write(mask);
+            self.dists[self.len].write(dist);
+            self.len += 1;
+        }
+
+        #[inline(always)]
+        pub(super) fn pop(&mut self) -> Option<(u32, u16, __m512)> {
+            self.len = self.len.checked_sub(1)?;
+            // SAFETY: entries below the old `len` were written.
+            unsafe {
+                Some((
+                    self.entries[self.len].assume_init(),
+                    self.masks[self.len].assume_init(),
+                    self.dists[self.len].assume_init(),
+                ))
+            }
+        }
+    }
 }

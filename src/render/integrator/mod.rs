@@ -233,6 +233,7 @@ impl Tracer for AnyIntegrator {
 
     fn streams(&self, scene: &Scene) -> bool {
         match self {
+            AnyIntegrator::Raycast(i) => Tracer::streams(i, scene),
             AnyIntegrator::Whitted(i) => i.streams(scene),
             _ => false,
         }
@@ -246,6 +247,7 @@ impl Tracer for AnyIntegrator {
         out: &mut [Color],
     ) -> bool {
         match self {
+            AnyIntegrator::Raycast(i) => i.trace_stream(scene, rays, counters, out),
             AnyIntegrator::Whitted(i) => i.stream(scene, rays, counters, out),
             _ => false,
         }

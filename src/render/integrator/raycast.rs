@@ -1,10 +1,11 @@
 //! Appel's ray casting.
 
 use super::whitted::{area_rotation, local_shading};
-use super::{Counters, RayKind, Recorder, Tracer, face_forward, intersect};
+use super::{Counters, NoRecord, RayKind, Recorder, Tracer, face_forward, intersect};
+use crate::accel::PACKET;
 use crate::math::{Color, Ray};
 use crate::render::sampler::PixelSampler;
-use crate::scene::Scene;
+use crate::scene::{Hit, Scene};
 
 /// Appel's ray casting: the first hit along the eye ray, shaded by the local
 /// terms of its material with a shadow ray to each light. No secondary rays.
@@ -17,6 +18,28 @@ pub struct Raycast {
 impl Default for Raycast {
     fn default() -> Self {
         Raycast { light_samples: 16 }
+    }
+}
+
+impl Raycast {
+    /// The radiance of a camera ray whose first hit is `hit`: the local
+    /// terms there (`area` as [`area_rotation`] gives it).
+    #[inline(always)]
+    fn shade<R: Recorder>(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        hit: &Hit,
+        area: Option<(u32, [f32; 3])>,
+        counters: &mut Counters,
+        rec: &mut R,
+    ) -> Color {
+        let si = scene.surface(ray, hit);
+        let wo = -ray.d.normalize();
+        let n_facing = face_forward(si.ns, face_forward(si.n, wo));
+        let l = local_shading(scene, &si, wo, n_facing, area, counters, rec);
+        rec.end(l, Color::ONE, l);
+        l
     }
 }
 
@@ -36,24 +59,44 @@ impl Tracer for Raycast {
             rec.end(background, Color::ONE, background);
             return background;
         };
-        let si = scene.surface(ray, &hit);
-        let wo = -ray.d.normalize();
-        let n_facing = face_forward(si.ns, face_forward(si.n, wo));
-        let l = local_shading(
-            scene,
-            &si,
-            wo,
-            n_facing,
-            area_rotation(scene, self.light_samples, sampler),
-            counters,
-            rec,
-        );
-        rec.end(l, Color::ONE, l);
-        l
+        let area = area_rotation(scene, self.light_samples, sampler);
+        self.shade(scene, ray, &hit, area, counters, rec)
     }
 
     #[inline]
     fn escaped(&self, scene: &Scene, ray: &Ray) -> Color {
         scene.background_le(ray.d)
+    }
+
+    /// Where no area light is sampled (which would draw random numbers).
+    fn streams(&self, scene: &Scene) -> bool {
+        self.light_samples == 0 || scene.emitters.area_select.is_empty()
+    }
+
+    /// The camera rays' first hits found [`PACKET`] rays at a time
+    /// ([`Scene::intersect_packet`]: coherent neighbours go through a mesh's
+    /// tree together), then each shaded as [`Tracer::trace`] shades it.
+    fn trace_stream(
+        &self,
+        scene: &Scene,
+        rays: &[Ray],
+        counters: &mut Counters,
+        out: &mut [Color],
+    ) -> bool {
+        if !Tracer::streams(self, scene) {
+            return false;
+        }
+        let mut hits = [None; PACKET];
+        for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+            let hits = &mut hits[..rays.len()];
+            scene.intersect_packet(rays, &mut counters.trace, hits);
+            for ((ray, hit), out) in rays.iter().zip(hits.iter()).zip(out) {
+                *out = match hit {
+                    None => self.escaped(scene, ray),
+                    Some(hit) => self.shade(scene, ray, hit, None, counters, &mut NoRecord),
+                };
+            }
+        }
+        true
     }
 }
