@@ -7,16 +7,21 @@
 //! [`Recorder`], each shadow ray it sends. Then, on both cores:
 //! - `kernels/render/MESH`: the whole render (rays, shading, film);
 //! - `kernels/closest/MESH`: the closest-hit kernel on its camera rays;
+//! - `kernels/closest_packets/MESH`: the same rays in the packets of 16
+//!   that the render traces (16 pixels of a tile's row: with a width that
+//!   is a multiple of 16, 16 consecutive camera rays);
 //! - `kernels/any/MESH`: the any-hit kernel on its shadow rays.
 //!
-//! Last it prints, per mesh, the render's time over the sum of the two
-//! kernels' (medians of 15 runs each, taken in turns in one process).
+//! Last it prints, per mesh, the render's time over the sum of the
+//! kernels' (closest and any; closest in packets and any), medians of 15
+//! runs each, taken in turns in one process.
 //!
 //! Meshes: a generated bumpy icosphere of 1.31M triangles (always) and the
 //! meshes of `../shared/data/` when that folder is there (it says so when it
 //! is not).
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use glint::accel::PACKET;
 use glint::geometry::testgen::bumpy_icosphere;
 use glint::geometry::{Mesh, Shape, TraceCounters};
 use glint::math::Vec3;
@@ -172,6 +177,24 @@ fn bench(c: &mut Criterion) {
                 })
                 .sum::<usize>()
         };
+        let closest_packets = || {
+            camera
+                .par_chunks(4096)
+                .map(|chunk| {
+                    let mut c = TraceCounters::default();
+                    let mut hits = [None; PACKET];
+                    chunk
+                        .chunks(PACKET)
+                        .map(|p| {
+                            let hits = &mut hits[..p.len()];
+                            instance.intersect_packet(p, &mut c, hits);
+                            hits.iter().filter(|h| h.is_some()).count()
+                        })
+                        .sum::<usize>()
+                })
+                .sum::<usize>()
+        };
+        assert_eq!(closest(), closest_packets(), "packets hit as often");
         let any = || {
             shadow
                 .par_chunks(4096)
@@ -191,11 +214,14 @@ fn bench(c: &mut Criterion) {
         g.bench_function(BenchmarkId::new("render", &name), |b| b.iter(whole));
         g.throughput(Throughput::Elements(camera.len() as u64));
         g.bench_function(BenchmarkId::new("closest", &name), |b| b.iter(closest));
+        g.bench_function(BenchmarkId::new("closest_packets", &name), |b| {
+            b.iter(closest_packets)
+        });
         g.throughput(Throughput::Elements(shadow.len() as u64));
         g.bench_function(BenchmarkId::new("any", &name), |b| b.iter(any));
         g.finish();
         // Side by side, in turns.
-        let mut t = [Vec::new(), Vec::new(), Vec::new()];
+        let mut t = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
         for _ in 0..5 {
             t[0].push(median_seconds(3, || {
                 black_box(whole());
@@ -206,18 +232,24 @@ fn bench(c: &mut Criterion) {
             t[2].push(median_seconds(3, || {
                 black_box(any());
             }));
+            t[3].push(median_seconds(3, || {
+                black_box(closest_packets());
+            }));
         }
-        let [r, k1, k2] = t.map(|mut v| {
+        let [r, k1, k2, k3] = t.map(|mut v| {
             v.sort_by(f64::total_cmp);
             v[v.len() / 2]
         });
         ratios.push(format!(
-            "{name}: render {:.1} ms, kernels {:.1} ms (closest {:.1} + any {:.1}): render / kernels = {:.2}",
+            "{name}: render {:.1} ms, kernels {:.1} ms (closest {:.1} + any {:.1}): render / kernels = {:.2}; \
+             with closest in packets ({:.1} ms): {:.2}",
             r * 1e3,
             (k1 + k2) * 1e3,
             k1 * 1e3,
             k2 * 1e3,
-            r / (k1 + k2)
+            r / (k1 + k2),
+            k3 * 1e3,
+            r / (k3 + k2)
         ));
     }
     for line in ratios {

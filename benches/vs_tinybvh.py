@@ -8,7 +8,11 @@ from ../shared/anchors/common.py (needs numpy and trimesh). Both sides trace
 1920x1080 primary rays through pixel centres and the shadow rays of the lit
 hits, on both cores, as ../shared/anchors/embree_bench.py defines them; the
 figure compared is tinybvh's `BVH8_CPU 2 thr` line and the middle of
-criterion's throughput for glint's `bvh/primary/MESH` and `bvh/shadow/MESH`.
+criterion's throughput for glint's `bvh/primary/MESH` and `bvh/shadow/MESH`;
+then glint's packets of 16 rays (`bvh/primary_packets/MESH`,
+`bvh/shadow_packets/MESH`: the same rays in 4x4 pixel blocks) against the
+same BVH8_CPU lines, and glint's primary packets against the faster of
+tinybvh's two 256-ray packet kernels (`BVH 256-pkt`, primary rays only).
 
     python3 benches/vs_tinybvh.py                 # igea and icosphere_8
     python3 benches/vs_tinybvh.py other.ply ...   # any binary PLY meshes too
@@ -34,25 +38,32 @@ def run(cmd, **kw):
 
 
 def tinybvh(mesh):
-    """(primary, shadow) Mrays/s of BVH8_CPU on 2 threads."""
+    """(primary, shadow, best packet primary) Mrays/s of BVH8_CPU and of
+    tinybvh's fastest 256-ray packet kernel, on 2 threads."""
     out = run([os.path.join(OUT, "bench_native"), mesh, "--runs", "5", "--no-hq"])
+    single, packets = None, []
     for line in out.splitlines():
         m = re.match(r"\s*BVH8_CPU\s+2 thr: primary\s+([\d.]+) Mrays/s.*shadow \d+ rays\s+([\d.]+) Mrays/s", line)
         if m:
-            return float(m.group(1)), float(m.group(2))
-    sys.exit(f"no BVH8_CPU 2-thread line in tinybvh's output for {mesh}:\n{out}")
+            single = float(m.group(1)), float(m.group(2))
+        m = re.match(r"\s*BVH 256-pkt.*2 thr: primary\s+([\d.]+) Mrays/s", line)
+        if m:
+            packets.append(float(m.group(1)))
+    if single is None:
+        sys.exit(f"no BVH8_CPU 2-thread line in tinybvh's output for {mesh}:\n{out}")
+    return single + (max(packets) if packets else None,)
 
 
 def glint(meshes):
     """{name: (primary, shadow)} Mrays/s from glint's bvh bench."""
     names = [os.path.splitext(os.path.basename(m))[0] for m in meshes]
     env = dict(os.environ, GLINT_BENCH_MESHES=":".join(meshes))
-    pattern = "(primary|shadow)/(" + "|".join(map(re.escape, names)) + ")$"
+    pattern = "(primary|shadow|primary_packets|shadow_packets)/(" + "|".join(map(re.escape, names)) + ")$"
     out = run(["cargo", "bench", "--bench", "bvh", "--", pattern], cwd=ROOT, env=env)
     found = {}
     current = None
     for line in out.splitlines():
-        m = re.match(r"bvh/(primary|shadow)/(\S+)", line)
+        m = re.match(r"bvh/(primary|shadow|primary_packets|shadow_packets)/(\S+)", line)
         if m:
             current = (m.group(1), m.group(2))
         m = re.search(r"thrpt:\s+\[\S+ \S+ ([\d.]+) (K|M|G)elem/s", line)
@@ -60,7 +71,8 @@ def glint(meshes):
             scale = {"K": 1e-3, "M": 1.0, "G": 1e3}[m.group(2)]
             found[current] = float(m.group(1)) * scale
             current = None
-    return {n: (found.get(("primary", n)), found.get(("shadow", n))) for n in names}
+    kinds = ["primary", "shadow", "primary_packets", "shadow_packets"]
+    return {n: tuple(found.get((k, n)) for k in kinds) for n in names}
 
 
 def main():
@@ -82,10 +94,15 @@ def main():
     for mesh in meshes:
         name = os.path.splitext(os.path.basename(mesh))[0]
         theirs = tinybvh(mesh)
-        for k, kind in enumerate(["primary", "shadow"]):
-            g, t = ours[name][k], theirs[k]
-            ratio = f"{g / t:6.2f}" if g else "   n/a"
-            print(f"{name:<16} {kind:<8} {g or float('nan'):8.2f} {t:8.2f} {ratio}")
+        # glint's single rays and packets against BVH8_CPU's single rays,
+        # and glint's primary packets against tinybvh's best packet kernel.
+        rows = [("primary", 0, 0), ("shadow", 1, 1), ("primary_packets", 2, 0),
+                ("shadow_packets", 3, 1), ("primary_packets", 2, 2)]
+        for kind, ko, kt in rows:
+            g, t = ours[name][ko], theirs[kt]
+            label = kind if kt != 2 else kind + " vs tinybvh's packets"
+            ratio = f"{g / t:6.2f}" if g and t else "   n/a"
+            print(f"{name:<16} {label:<8} {g or float('nan'):8.2f} {t or float('nan'):8.2f} {ratio}")
 
 
 if __name__ == "__main__":

@@ -39,7 +39,7 @@ fn counts(s: &RenderStats) -> String {
 }
 
 /// Renders `text` (a scene file) both ways and compares; returns whether
-/// it streamed.
+/// it streamed breadth first.
 fn same_both_ways(text: &str, width: u32, height: u32, spp: u32, max_depth: i32) -> bool {
     let file = parse_scene(text, Path::new("stream.toml")).unwrap_or_else(|e| panic!("{e}"));
     let settings = RenderSettings {
@@ -52,7 +52,7 @@ fn same_both_ways(text: &str, width: u32, height: u32, spp: u32, max_depth: i32)
     };
     let integrator = AnyIntegrator::new(&settings);
     let streams = match integrator {
-        AnyIntegrator::Whitted(w) => w.streams(&file.scene),
+        AnyIntegrator::Whitted(w) => w.streams(&file.scene) && w.breadth_first(&file.scene),
         _ => unreachable!(),
     };
     let options = Default::default();
@@ -96,7 +96,7 @@ fn whitted_scene_streams_to_the_same_image() {
     assert!(same_both_ways(BUILTIN_WHITTED, 48, 32, 1, 2));
     assert!(same_both_ways(BUILTIN_WHITTED, 48, 32, 1, 9));
     // Deeper trees may be cut by the ray budget, in depth-first order:
-    // those are traced one by one.
+    // those stream only their camera rays' first hits.
     assert!(!same_both_ways(BUILTIN_WHITTED, 24, 16, 1, 10));
 }
 
@@ -206,9 +206,9 @@ fn scenes_it_cannot_stream_are_traced_one_by_one() {
     assert!(!same_both_ways(&area, 32, 24, 1, 4));
 }
 
-/// Ray casting streams camera rays through meshes as packets
-/// (`Scene::intersect_packet`). A scene of a transformed torus instance, a
-/// bumpy icosphere and a sphere, rendered both ways: the same image bit for
+/// Ray casting and Whitted's integrator stream camera rays through meshes
+/// as packets (`Scene::intersect_packet`). A scene of a transformed torus
+/// instance, a bumpy icosphere and a mirror sphere, rendered both ways: the same image bit for
 /// bit, the same rays and object tests. (The packets may take a node's
 /// children in another order than a single ray, so the counts of BVH nodes
 /// and triangle tests are not compared; a pixel whose ray hits two
@@ -237,10 +237,17 @@ fn raycast_streams_meshes_as_packets_to_the_same_image() {
         shape: Shape::Mesh(MeshInstance::new(mesh(bumpy_icosphere(4)), None)),
         material: 0,
     };
-    // Partly behind the ball: hits on objects met later must not win.
+    // Partly behind the ball: hits on objects met later must not win. A
+    // mirror, for Whitted's ray trees.
     let sphere = Object {
         shape: Shape::Sphere(Sphere::new(Vec3::new(0.8, 0.6, 1.8), 0.6)),
-        material: 0,
+        material: 1,
+    };
+    let mirror = Material {
+        kind: glint::scene::MaterialKind::Mirror {
+            reflectance: Color::splat(0.8),
+        },
+        ..Material::default_diffuse()
     };
     let scene = |objects| {
         Scene::new(
@@ -252,7 +259,7 @@ fn raycast_streams_meshes_as_packets_to_the_same_image() {
             )
             .unwrap(),
             objects,
-            vec![Material::default_diffuse()],
+            vec![Material::default_diffuse(), mirror.clone()],
             vec![Light::Point {
                 position: Vec3::new(3.0, 6.0, -4.0),
                 intensity: Color::splat(40.0),
@@ -264,27 +271,32 @@ fn raycast_streams_meshes_as_packets_to_the_same_image() {
     };
     // One mesh and a sphere (tested in turn), and two meshes (merged into
     // one, with the sphere in a top-level BVH).
-    for (scene, (width, height, spp)) in [
+    let scenes = [
         (scene(vec![ball.clone(), sphere.clone()]), (96, 72, 1)),
         (
             scene(vec![torus.clone(), ball.clone(), sphere.clone()]),
             (96, 72, 1),
         ),
         (scene(vec![torus, ball, sphere]), (40, 30, 3)),
-    ] {
+    ];
+    let cases = [IntegratorKind::Raycast, IntegratorKind::Whitted]
+        .into_iter()
+        .flat_map(|i| scenes.iter().map(move |s| (i, s)));
+    for (integrator, (scene, (width, height, spp))) in cases {
+        let (width, height, spp) = (*width, *height, *spp);
         let settings = RenderSettings {
             width,
             height,
             spp,
-            integrator: IntegratorKind::Raycast,
+            integrator,
             ..Default::default()
         };
         let integrator = AnyIntegrator::new(&settings);
-        assert!(integrator.streams(&scene));
+        assert!(integrator.streams(scene));
         let options = Default::default();
         let (packets, a) =
-            render_with(&scene, &settings, &integrator, &options, &|_| {}).expect("renders");
-        let (one, b) = render_with(&scene, &settings, &OneByOne(integrator), &options, &|_| {})
+            render_with(scene, &settings, &integrator, &options, &|_| {}).expect("renders");
+        let (one, b) = render_with(scene, &settings, &OneByOne(integrator), &options, &|_| {})
             .expect("renders");
         let lit = one.image.pixels.iter().filter(|c| c.x > 0.0).count();
         assert!(lit > (width * height / 8) as usize, "{lit} lit pixels");
@@ -305,5 +317,8 @@ fn raycast_streams_meshes_as_packets_to_the_same_image() {
             (a.rays, a.intersection_tests),
             (b.rays, b.intersection_tests)
         );
+        if settings.integrator == IntegratorKind::Whitted {
+            assert!(a.rays.reflection > 20, "{:?}", a.rays);
+        }
     }
 }

@@ -11,12 +11,19 @@
 //! few spheres, planes and boxes (see [`Scene::batchable`]), no area lights
 //! to sample (they draw random numbers in depth-first order), and ray trees
 //! that cannot outgrow [`MAX_RAY_TREE`] (whose cut depends on that order).
+//! Other scenes without area lights to sample stream only their camera
+//! rays' first hits, in packets of 16 ([`Scene::intersect_packet`]: coherent
+//! rays go through a mesh's tree together), and trace the rest of each tree
+//! depth first, as one by one (the same image, but where two triangles
+//! are hit at exactly the same `t`, which may name the other one).
 
 use super::whitted::{AtHit, LightGain, local_terms, through_glass};
-use super::{Counters, MAX_RAY_TREE, Tracer, Whitted};
+use super::{Counters, MAX_RAY_TREE, NoRecord, Tracer, Whitted};
+use crate::accel::PACKET;
 use crate::geometry::ShapeHit;
 use crate::geometry::batch::{BATCH, NO_HIT, RayBatch};
 use crate::math::{Color, Ray};
+use crate::render::sampler::PixelSampler;
 use crate::scene::{Hit, Scene, TraceCounters};
 use std::cell::RefCell;
 
@@ -68,15 +75,21 @@ thread_local! {
 }
 
 impl Whitted {
-    /// Whether [`Whitted::stream`] renders this scene (see the module
-    /// documentation).
+    /// Whether [`Whitted::stream`] renders this scene: where no area light
+    /// is sampled (which would draw random numbers). Scenes it cannot take
+    /// breadth first (see the module documentation) get their camera rays'
+    /// first hits in packets ([`Scene::intersect_packet`]), and the rest of
+    /// each ray tree depth first.
     pub fn streams(&self, scene: &Scene) -> bool {
+        self.light_samples == 0 || scene.emitters.area_select.is_empty()
+    }
+
+    /// Whether the stream goes breadth first (see the module documentation).
+    pub fn breadth_first(&self, scene: &Scene) -> bool {
         // A full tree of depth d has 2^(d+1) − 2 secondary rays.
         let tree_fits =
             self.max_depth < 31 && (1u64 << (self.max_depth + 1)) - 2 <= MAX_RAY_TREE as u64;
-        scene.batchable()
-            && tree_fits
-            && (self.light_samples == 0 || scene.emitters.area_select.is_empty())
+        scene.batchable() && tree_fits
     }
 
     /// The radiance of each camera ray of `rays` into `out`, as
@@ -92,7 +105,20 @@ impl Whitted {
         if !self.streams(scene) {
             return false;
         }
-        SCRATCH.with(|s| self.stream_in(scene, rays, counters, out, &mut s.borrow_mut()));
+        if self.breadth_first(scene) {
+            SCRATCH.with(|s| self.stream_in(scene, rays, counters, out, &mut s.borrow_mut()));
+            return true;
+        }
+        // No area light is sampled: the sampler is never asked for a number.
+        let mut sampler = PixelSampler::new(0, 0, 0);
+        let mut hits = [None; PACKET];
+        for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+            let hits = &mut hits[..rays.len()];
+            scene.intersect_packet(rays, &mut counters.trace, hits);
+            for ((ray, hit), out) in rays.iter().zip(hits.iter()).zip(out) {
+                *out = self.camera_hit(scene, ray, *hit, &mut sampler, counters, &mut NoRecord);
+            }
+        }
         true
     }
 

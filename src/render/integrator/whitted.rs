@@ -90,14 +90,31 @@ impl Whitted {
         counters: &mut Counters,
         rec: &mut R,
     ) -> Color {
+        rec.begin(RayKind::Camera, ray, Color::ONE);
+        let hit = intersect(scene, ray, counters, rec);
+        self.camera_hit(scene, ray, hit, sampler, counters, rec)
+    }
+
+    /// The radiance of a camera ray whose first hit is `hit` (the recorder
+    /// told of both).
+    #[inline(always)]
+    pub(super) fn camera_hit<R: Recorder>(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        hit: Option<Hit>,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        rec: &mut R,
+    ) -> Color {
         let mut budget = Budget {
             left: MAX_RAY_TREE,
             cut: false,
         };
-        rec.begin(RayKind::Camera, ray, Color::ONE);
-        let l = self.trace_ray(
+        let l = self.trace_hit(
             scene,
             ray,
+            hit,
             0,
             1.0,
             Color::ONE,
@@ -128,7 +145,29 @@ impl Whitted {
         counters: &mut Counters,
         rec: &mut R,
     ) -> Color {
-        let Some(hit) = intersect(scene, ray, counters, rec) else {
+        let hit = intersect(scene, ray, counters, rec);
+        self.trace_hit(
+            scene, ray, hit, depth, weight, throughput, budget, sampler, counters, rec,
+        )
+    }
+
+    /// [`Whitted::trace_ray`] given the ray's first hit.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn trace_hit<R: Recorder>(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        hit: Option<Hit>,
+        depth: u32,
+        weight: f32,
+        throughput: Color,
+        budget: &mut Budget,
+        sampler: &mut PixelSampler,
+        counters: &mut Counters,
+        rec: &mut R,
+    ) -> Color {
+        let Some(hit) = hit else {
             // Any ray of the tree that escapes, as a camera ray does.
             let background = Tracer::escaped(self, scene, ray);
             rec.end(background, Color::ONE, background);
