@@ -370,15 +370,14 @@ impl Scene {
     }
 
     /// [`Scene::intersect`] for each ray of `rays` (at most [`PACKET`],
-    /// coherent ones, such as neighbouring camera rays) into `out`: in a
+    /// coherent ones, such as neighbouring camera rays) into `out`. In a
     /// scene of few objects, each mesh takes all the rays at once as a
-    /// packet ([`MeshInstance::intersect_packet`]); other shapes, and
-    /// scenes with a top-level BVH, take them one by one. Each ray gets the
-    /// same `t`, object and counts of object tests as from
-    /// `Scene::intersect`; where two triangles of a mesh are hit at exactly
-    /// that `t`, either may be named. Scenes with a top-level BVH trace the
-    /// mesh merged from their small meshes (see [`Merged`]) as a packet, and
-    /// the rest ray by ray.
+    /// packet ([`crate::geometry::MeshInstance::intersect_packet`]) and
+    /// other shapes take them one by one; a scene with a top-level BVH
+    /// traces the mesh merged from its small meshes (see [`Merged`]) as a
+    /// packet, and the rest ray by ray. Each ray gets the same `t`, object
+    /// and counts of object tests as from `Scene::intersect`; where two
+    /// triangles of a mesh are hit at exactly that `t`, either may be named.
     pub fn intersect_packet(
         &self,
         rays: &[Ray],

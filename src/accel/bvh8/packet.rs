@@ -1,4 +1,4 @@
-//! Closest hits of coherent rays traced together: a packet of up to
+//! Closest and any hits of coherent rays traced together: a packet of up to
 //! [`PACKET`] rays (a 4×4 block of camera rays, say) goes down the tree as
 //! one, with a mask of the rays still in each subtree (Wald et al.,
 //! "Interactive Rendering with Coherent Ray Tracing", 2001; with masks per
@@ -54,12 +54,14 @@ impl Bvh8 {
         if self.nodes.is_empty() {
             return;
         }
-        let mut packed = 0u16;
         #[cfg(target_arch = "x86_64")]
-        if avx512::available() {
-            // SAFETY: the CPU has what `avx512` needs.
-            packed = unsafe { self.closest_avx512(rays, counters, &mut test, out) };
-        }
+        // SAFETY: the CPU has what `avx512` needs.
+        let packed = match avx512::available() {
+            true => unsafe { self.closest_avx512(rays, counters, &mut test, out) },
+            false => 0,
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let packed = 0u16;
         // The rest one by one.
         for (r, ray) in rays.iter().enumerate() {
             if packed & 1 << r == 0 {
@@ -85,12 +87,14 @@ impl Bvh8 {
         if self.nodes.is_empty() {
             return;
         }
-        let mut packed = 0u16;
         #[cfg(target_arch = "x86_64")]
-        if avx512::available() {
-            // SAFETY: the CPU has what `avx512` needs.
-            packed = unsafe { self.any_avx512(rays, counters, &mut test, out) };
-        }
+        // SAFETY: the CPU has what `avx512` needs.
+        let packed = match avx512::available() {
+            true => unsafe { self.any_avx512(rays, counters, &mut test, out) },
+            false => 0,
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let packed = 0u16;
         for (r, ray) in rays.iter().enumerate() {
             if packed & 1 << r == 0 {
                 out[r] = self.any_leaves(ray, counters, |first, count| test(r, first, count));
