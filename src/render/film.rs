@@ -6,6 +6,7 @@ use super::parts::{Film, FilmHeader, SampleSum, check_header};
 use super::srgb::srgb8_pixels;
 use crate::math::Color;
 use crate::settings::{Rect, SampleRange};
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// Linear-RGB radiance per pixel, row-major from the top-left.
@@ -28,9 +29,16 @@ impl Image {
     /// [`Image::new`], or `None` if its pixels cannot be allocated.
     pub fn try_new(width: u32, height: u32) -> Option<Self> {
         let n = width as usize * height as usize;
-        let mut pixels = Vec::new();
+        let mut pixels: Vec<Color> = Vec::new();
         pixels.try_reserve_exact(n).ok()?;
-        pixels.resize(n, Color::ZERO);
+        // Zeroed on all threads: a 1280×720 film is 15 MB, whose clearing
+        // by the calling thread alone, while the others wait, took 3% of a
+        // Whitted frame.
+        pixels.spare_capacity_mut()[..n]
+            .par_chunks_mut(1 << 15)
+            .for_each(|chunk| chunk.fill(std::mem::MaybeUninit::new(Color::ZERO)));
+        // SAFETY: the capacity holds `n` elements, all written just above.
+        unsafe { pixels.set_len(n) };
         Some(Image {
             width,
             height,
