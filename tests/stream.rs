@@ -38,6 +38,36 @@ fn counts(s: &RenderStats) -> String {
     format!("{s:?}")
 }
 
+/// Renders `scene` with `integrator` (streaming where it can) and one ray
+/// at a time, asks for the same image bit for bit, and returns the two
+/// renders' statistics.
+fn render_both_ways(
+    scene: &Scene,
+    settings: &RenderSettings,
+    integrator: AnyIntegrator,
+) -> (RenderStats, RenderStats) {
+    let options = Default::default();
+    let (streamed, a) =
+        render_with(scene, settings, &integrator, &options, &|_| {}).expect("renders");
+    let (one, b) =
+        render_with(scene, settings, &OneByOne(integrator), &options, &|_| {}).expect("renders");
+    let (width, height) = (settings.width, settings.height);
+    for (k, (x, y)) in streamed
+        .image
+        .pixels
+        .iter()
+        .zip(&one.image.pixels)
+        .enumerate()
+    {
+        assert_eq!(
+            x.to_array().map(f32::to_bits),
+            y.to_array().map(f32::to_bits),
+            "pixel {k} of {width}×{height}: {x} streamed, {y} one by one"
+        );
+    }
+    (a, b)
+}
+
 /// Renders `text` (a scene file) both ways and compares; returns whether
 /// it streamed breadth first.
 fn same_both_ways(text: &str, width: u32, height: u32, spp: u32, max_depth: i32) -> bool {
@@ -55,31 +85,7 @@ fn same_both_ways(text: &str, width: u32, height: u32, spp: u32, max_depth: i32)
         AnyIntegrator::Whitted(w) => w.streams(&file.scene) && w.breadth_first(&file.scene),
         _ => unreachable!(),
     };
-    let options = Default::default();
-    let (streamed, a) =
-        render_with(&file.scene, &settings, &integrator, &options, &|_| {}).expect("renders");
-    let (one, b) = render_with(
-        &file.scene,
-        &settings,
-        &OneByOne(integrator),
-        &options,
-        &|_| {},
-    )
-    .expect("renders");
-    for (k, (x, y)) in streamed
-        .image
-        .pixels
-        .iter()
-        .zip(&one.image.pixels)
-        .enumerate()
-    {
-        assert_eq!(
-            x.to_array().map(f32::to_bits),
-            y.to_array().map(f32::to_bits),
-            "pixel {} of {width}×{height}: {x} streamed, {y} one by one",
-            k
-        );
-    }
+    let (a, b) = render_both_ways(&file.scene, &settings, integrator);
     assert_eq!(counts(&a), counts(&b));
     streams
 }
@@ -293,26 +299,9 @@ fn raycast_streams_meshes_as_packets_to_the_same_image() {
         };
         let integrator = AnyIntegrator::new(&settings);
         assert!(integrator.streams(scene));
-        let options = Default::default();
-        let (packets, a) =
-            render_with(scene, &settings, &integrator, &options, &|_| {}).expect("renders");
-        let (one, b) = render_with(scene, &settings, &OneByOne(integrator), &options, &|_| {})
-            .expect("renders");
-        let lit = one.image.pixels.iter().filter(|c| c.x > 0.0).count();
-        assert!(lit > (width * height / 8) as usize, "{lit} lit pixels");
-        for (k, (x, y)) in packets
-            .image
-            .pixels
-            .iter()
-            .zip(&one.image.pixels)
-            .enumerate()
-        {
-            assert_eq!(
-                x.to_array().map(f32::to_bits),
-                y.to_array().map(f32::to_bits),
-                "pixel {k} of {width}×{height}: {x} in packets, {y} one by one"
-            );
-        }
+        let (a, b) = render_both_ways(scene, &settings, integrator);
+        let lit = (a.rays.shadow as f64) / (a.rays.camera as f64);
+        assert!(lit > 0.1, "shadow rays per camera ray {lit}");
         assert_eq!(
             (a.rays, a.intersection_tests),
             (b.rays, b.intersection_tests)

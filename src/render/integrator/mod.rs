@@ -15,6 +15,7 @@ pub use whitted::{Whitted, transmittance};
 use super::explain::RayTree;
 use super::sampler::PixelSampler;
 use super::stats::RayCounts;
+use crate::accel::PACKET;
 use crate::math::{Color, Ray, Vec3};
 use crate::scene::{Hit, Scene, TraceCounters};
 use crate::settings::{IntegratorKind, RenderSettings};
@@ -318,6 +319,28 @@ pub(super) fn intersect<R: Recorder>(
     let hit = scene.intersect(ray, &mut counters.trace);
     rec.hit(scene, ray, hit.as_ref(), counters.trace.since(&before));
     hit
+}
+
+/// The radiance of each camera ray of `rays` into `out`: their first hits
+/// found [`PACKET`] rays at a time ([`Scene::intersect_packet`]: coherent
+/// neighbours go through a mesh's tree together), then `radiance(ray, hit,
+/// counters)` for each, in order.
+#[inline(always)]
+pub(super) fn from_first_hits(
+    scene: &Scene,
+    rays: &[Ray],
+    counters: &mut Counters,
+    out: &mut [Color],
+    mut radiance: impl FnMut(&Ray, Option<Hit>, &mut Counters) -> Color,
+) {
+    let mut hits = [None; PACKET];
+    for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+        let hits = &mut hits[..rays.len()];
+        scene.intersect_packet(rays, &mut counters.trace, hits);
+        for ((ray, hit), out) in rays.iter().zip(hits.iter()).zip(out) {
+            *out = radiance(ray, *hit, counters);
+        }
+    }
 }
 
 /// `n` flipped, if needed, to the side of `w`.

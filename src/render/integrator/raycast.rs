@@ -1,8 +1,9 @@
 //! Appel's ray casting.
 
 use super::whitted::{area_rotation, local_shading};
-use super::{Counters, NoRecord, RayKind, Recorder, Tracer, face_forward, intersect};
-use crate::accel::PACKET;
+use super::{
+    Counters, NoRecord, RayKind, Recorder, Tracer, face_forward, from_first_hits, intersect,
+};
 use crate::math::{Color, Ray};
 use crate::render::sampler::PixelSampler;
 use crate::scene::{Hit, Scene};
@@ -73,9 +74,8 @@ impl Tracer for Raycast {
         self.light_samples == 0 || scene.emitters.area_select.is_empty()
     }
 
-    /// The camera rays' first hits found [`PACKET`] rays at a time
-    /// ([`Scene::intersect_packet`]: coherent neighbours go through a mesh's
-    /// tree together), then each shaded as [`Tracer::trace`] shades it.
+    /// The camera rays' first hits found in packets ([`from_first_hits`]),
+    /// then each shaded as [`Tracer::trace`] shades it.
     fn trace_stream(
         &self,
         scene: &Scene,
@@ -86,17 +86,10 @@ impl Tracer for Raycast {
         if !Tracer::streams(self, scene) {
             return false;
         }
-        let mut hits = [None; PACKET];
-        for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
-            let hits = &mut hits[..rays.len()];
-            scene.intersect_packet(rays, &mut counters.trace, hits);
-            for ((ray, hit), out) in rays.iter().zip(hits.iter()).zip(out) {
-                *out = match hit {
-                    None => self.escaped(scene, ray),
-                    Some(hit) => self.shade(scene, ray, hit, None, counters, &mut NoRecord),
-                };
-            }
-        }
+        from_first_hits(scene, rays, counters, out, |ray, hit, counters| match hit {
+            None => self.escaped(scene, ray),
+            Some(hit) => self.shade(scene, ray, &hit, None, counters, &mut NoRecord),
+        });
         true
     }
 }

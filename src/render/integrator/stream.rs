@@ -18,8 +18,7 @@
 //! are hit at exactly the same `t`, which may name the other one).
 
 use super::whitted::{AtHit, LightGain, local_terms, through_glass};
-use super::{Counters, MAX_RAY_TREE, NoRecord, Tracer, Whitted};
-use crate::accel::PACKET;
+use super::{Counters, MAX_RAY_TREE, NoRecord, Tracer, Whitted, from_first_hits};
 use crate::geometry::ShapeHit;
 use crate::geometry::batch::{BATCH, NO_HIT, RayBatch};
 use crate::math::{Color, Ray};
@@ -111,14 +110,9 @@ impl Whitted {
         }
         // No area light is sampled: the sampler is never asked for a number.
         let mut sampler = PixelSampler::new(0, 0, 0);
-        let mut hits = [None; PACKET];
-        for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
-            let hits = &mut hits[..rays.len()];
-            scene.intersect_packet(rays, &mut counters.trace, hits);
-            for ((ray, hit), out) in rays.iter().zip(hits.iter()).zip(out) {
-                *out = self.camera_hit(scene, ray, *hit, &mut sampler, counters, &mut NoRecord);
-            }
-        }
+        from_first_hits(scene, rays, counters, out, |ray, hit, counters| {
+            self.camera_hit(scene, ray, hit, &mut sampler, counters, &mut NoRecord)
+        });
         true
     }
 
