@@ -618,10 +618,7 @@ impl MeshInstance {
         counters: &mut TraceCounters,
         out: &mut [Option<ShapeHit>],
     ) {
-        let mut object = [Ray::new(Vec3::ZERO, Vec3::X); PACKET];
-        for (o, r) in object.iter_mut().zip(rays) {
-            *o = self.object_ray(r);
-        }
+        let object = self.object_rays(rays);
         self.mesh
             .intersect_packet(&object[..rays.len()], counters, out);
     }
@@ -634,12 +631,20 @@ impl MeshInstance {
     /// [`MeshInstance::occludes`] for up to [`PACKET`] rays at once
     /// ([`Mesh::occludes_packet`]).
     pub fn occludes_packet(&self, rays: &[Ray], counters: &mut TraceCounters, out: &mut [bool]) {
+        let object = self.object_rays(rays);
+        self.mesh
+            .occludes_packet(&object[..rays.len()], counters, out);
+    }
+
+    /// [`MeshInstance::object_ray`] of each of up to [`PACKET`] rays, in
+    /// the first `rays.len()` places.
+    #[inline(always)]
+    fn object_rays(&self, rays: &[Ray]) -> [Ray; PACKET] {
         let mut object = [Ray::new(Vec3::ZERO, Vec3::X); PACKET];
         for (o, r) in object.iter_mut().zip(rays) {
             *o = self.object_ray(r);
         }
-        self.mesh
-            .occludes_packet(&object[..rays.len()], counters, out);
+        object
     }
 
     #[inline(never)]

@@ -1,6 +1,6 @@
 //! Appel's ray casting.
 
-use super::whitted::{area_rotation, local_shading};
+use super::whitted::{area_rotation, local_shading, samples_area_lights};
 use super::{
     Counters, NoRecord, RayKind, Recorder, Tracer, face_forward, from_first_hits, intersect,
 };
@@ -71,7 +71,7 @@ impl Tracer for Raycast {
 
     /// Where no area light is sampled (which would draw random numbers).
     fn streams(&self, scene: &Scene) -> bool {
-        self.light_samples == 0 || scene.emitters.area_select.is_empty()
+        !samples_area_lights(scene, self.light_samples)
     }
 
     /// The camera rays' first hits found in packets ([`from_first_hits`]),

@@ -17,7 +17,7 @@
 //! depth first, as one by one (the same image, but where two triangles
 //! are hit at exactly the same `t`, which may name the other one).
 
-use super::whitted::{AtHit, LightGain, local_terms, through_glass};
+use super::whitted::{AtHit, LightGain, local_terms, samples_area_lights, through_glass};
 use super::{Counters, MAX_RAY_TREE, NoRecord, Tracer, Whitted, from_first_hits};
 use crate::geometry::ShapeHit;
 use crate::geometry::batch::{BATCH, NO_HIT, RayBatch};
@@ -80,7 +80,7 @@ impl Whitted {
     /// first hits in packets ([`Scene::intersect_packet`]), and the rest of
     /// each ray tree depth first.
     pub fn streams(&self, scene: &Scene) -> bool {
-        self.light_samples == 0 || scene.emitters.area_select.is_empty()
+        !samples_area_lights(scene, self.light_samples)
     }
 
     /// Whether the stream goes breadth first (see the module documentation).

@@ -396,6 +396,13 @@ pub(super) fn local_shading<R: Recorder>(
     })
 }
 
+/// Whether shading samples area lights (`light_samples` of them per hit),
+/// which draws random numbers (see [`area_rotation`]).
+#[inline]
+pub(super) fn samples_area_lights(scene: &Scene, light_samples: u32) -> bool {
+    light_samples > 0 && !scene.emitters.area_select.is_empty()
+}
+
 /// The random rotation of the area lights' lattice for a sample, if it
 /// has area lights to sample (see [`local_shading`]).
 #[inline]
@@ -404,7 +411,7 @@ pub(super) fn area_rotation(
     light_samples: u32,
     sampler: &mut PixelSampler,
 ) -> Option<(u32, [f32; 3])> {
-    (light_samples > 0 && !scene.emitters.area_select.is_empty()).then(|| {
+    samples_area_lights(scene, light_samples).then(|| {
         let (r0, r1) = sampler.next_2d();
         (light_samples, [r0, r1, sampler.next_1d()])
     })
