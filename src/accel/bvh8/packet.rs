@@ -4,12 +4,12 @@
 //! "Interactive Rendering with Coherent Ray Tracing", 2001; with masks per
 //! stack entry as Reshetov et al.'s "Multi-Level Ray Tracing", 2005).
 //!
-//! One AVX-512 register holds a quantity for all sixteen rays, so a child's
-//! box is tested against every ray of the packet with the operations that
-//! test one ray against eight boxes in the single-ray traversal: a node is
-//! eight such tests, whatever the number of rays, and its load, its
-//! decisions and their mispredictions are paid once per packet instead of
-//! once per ray. Each ray's test is the single-ray fused test (see
+//! One AVX-512 register (or two AVX2 registers) holds a quantity for all
+//! sixteen rays, so a child's box is tested against every ray of the packet
+//! with the operations that test one ray against eight boxes in the
+//! single-ray traversal: a node is eight such tests, whatever the number of
+//! rays, and its load, its decisions and their mispredictions are paid once
+//! per packet instead of once per ray. Each ray's test is the single-ray fused test (see
 //! `RaySetup::new`), operation for operation, with its own constants and its
 //! own `t_max`: a ray enters exactly the boxes it would enter alone. A
 //! child's entry distances are kept with it on the stack, and a popped
@@ -21,17 +21,22 @@
 //! Each ray's closest `t` is therefore the single-ray traversal's; where
 //! two primitives are hit at exactly that `t` (a shared edge), the one
 //! returned may differ, as it may between two traversal orders. Rays that
-//! the fused test does not take, and packets on CPUs without AVX-512, are
-//! traced one by one.
+//! the fused test does not take (and with AVX2, rays of another octant than
+//! the first ray's), and packets on CPUs without AVX2, are traced one by
+//! one.
 //!
 //! Any hits (shadow rays) go the same way without the order and the
 //! distances, as the single-ray any-hit traversal does: a node's leaves are
 //! tested at once for the rays that reach them, and a ray leaves the
 //! packet as soon as something blocks it.
 
+#[cfg(target_arch = "x86_64")]
+use super::STACK;
 use super::{Bvh8, Bvh8Node, LEAF};
 use crate::accel::bvh::TraversalCounters;
 use crate::math::Ray;
+#[cfg(target_arch = "x86_64")]
+use std::mem::MaybeUninit;
 
 /// Rays of a packet: one AVX-512 register of f32.
 pub const PACKET: usize = 16;
@@ -55,10 +60,13 @@ impl Bvh8 {
             return;
         }
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: the CPU has what `avx512` needs.
-        let packed = match avx512::available() {
-            true => unsafe { self.closest_avx512(rays, counters, &mut test, out) },
-            false => 0,
+        // SAFETY (both): the CPU has what the lanes need.
+        let packed = if avx512::available() {
+            unsafe { self.closest_packet_avx512(rays, counters, &mut test, out) }
+        } else if avx2::available() {
+            unsafe { self.closest_packet_avx2(rays, counters, &mut test, out) }
+        } else {
+            0
         };
         #[cfg(not(target_arch = "x86_64"))]
         let packed = 0u16;
@@ -88,10 +96,13 @@ impl Bvh8 {
             return;
         }
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: the CPU has what `avx512` needs.
-        let packed = match avx512::available() {
-            true => unsafe { self.any_avx512(rays, counters, &mut test, out) },
-            false => 0,
+        // SAFETY (both): the CPU has what the lanes need.
+        let packed = if avx512::available() {
+            unsafe { self.any_packet_avx512(rays, counters, &mut test, out) }
+        } else if avx2::available() {
+            unsafe { self.any_packet_avx2(rays, counters, &mut test, out) }
+        } else {
+            0
         };
         #[cfg(not(target_arch = "x86_64"))]
         let packed = 0u16;
@@ -102,45 +113,98 @@ impl Bvh8 {
         }
     }
 
-    /// The closest hits of the rays of `rays` that take the fused test,
-    /// into `out`; returns the mask of those rays.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,fma,popcnt,bmi1")]
-    fn closest_avx512(
+    fn closest_packet_avx512(
         &self,
         rays: &[Ray],
         counters: &mut TraversalCounters,
         test: &mut impl FnMut(usize, u32, u32, f32) -> Option<(u32, f32)>,
         out: &mut [Option<(u32, f32)>],
     ) -> u16 {
-        use std::arch::x86_64::*;
         let lanes = avx512::Lanes16::new(rays, &self.root());
-        if lanes.active == 0 {
+        self.closest_lanes(&lanes, rays, counters, test, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
+    fn closest_packet_avx2(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraversalCounters,
+        test: &mut impl FnMut(usize, u32, u32, f32) -> Option<(u32, f32)>,
+        out: &mut [Option<(u32, f32)>],
+    ) -> u16 {
+        let lanes = avx2::Lanes16::new(rays, &self.root());
+        self.closest_lanes(&lanes, rays, counters, test, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,fma,popcnt,bmi1")]
+    fn any_packet_avx512(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraversalCounters,
+        test: &mut impl FnMut(usize, u32, u32) -> bool,
+        out: &mut [bool],
+    ) -> u16 {
+        let lanes = avx512::Lanes16::new(rays, &self.root());
+        self.any_lanes(&lanes, rays, counters, test, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
+    fn any_packet_avx2(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraversalCounters,
+        test: &mut impl FnMut(usize, u32, u32) -> bool,
+        out: &mut [bool],
+    ) -> u16 {
+        let lanes = avx2::Lanes16::new(rays, &self.root());
+        self.any_lanes(&lanes, rays, counters, test, out)
+    }
+
+    /// The closest hits of the rays of `rays` that `lanes` takes, into
+    /// `out`; returns the mask of those rays. Inlined into the callers
+    /// compiled for the lanes' instructions.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn closest_lanes<L: Lanes>(
+        &self,
+        lanes: &L,
+        rays: &[Ray],
+        counters: &mut TraversalCounters,
+        test: &mut impl FnMut(usize, u32, u32, f32) -> Option<(u32, f32)>,
+        out: &mut [Option<(u32, f32)>],
+    ) -> u16 {
+        let active = lanes.active();
+        if active == 0 {
             return 0;
         }
-        let shift = 3 * lanes.octant;
+        let shift = 3 * lanes.octant();
         let mut t_max: [f32; PACKET] =
             std::array::from_fn(|r| rays.get(r).map_or(f32::INFINITY, |ray| ray.t_max));
-        let mut bound = avx512::widen(&t_max);
+        let mut bound = lanes.widen(&t_max);
         let mut best = [None; PACKET];
         // The stack: entries, their rays, their rays' entry distances.
-        let mut stack = avx512::Stack::new();
+        let mut stack = Stack::new();
         let (mut visited, mut tests) = (0u64, 0u64);
-        let (mut entry, mut mask) = (0u32, lanes.active);
+        let (mut entry, mut mask) = (0u32, active);
         'visit: loop {
             if entry & LEAF == 0 {
                 visited += u64::from(mask.count_ones());
                 let node = &self.nodes[entry as usize];
                 // Each child against every ray of the mask.
                 let mut hit = [0u16; 8];
-                let mut enter = [_mm512_setzero_ps(); 8];
+                let mut enter = [lanes.zero(); 8];
                 for k in 0..8 {
                     if node.child[k] != super::EMPTY {
                         (hit[k], enter[k]) = lanes.test(node, k, mask, bound);
                     }
                 }
-                // Nearest first for the first ray's octant: push the
-                // others farthest first.
+                // Nearest first for the packet's octant: push the others
+                // farthest first.
                 let mut next = None;
                 for j in (0..8).rev() {
                     let k = (node.order[j] >> shift & 7) as usize;
@@ -168,13 +232,13 @@ impl Bvh8 {
                     }
                 }
                 if changed {
-                    bound = avx512::widen(&t_max);
+                    bound = lanes.widen(&t_max);
                 }
             }
             // Entries go on with the rays whose closest hit so far is not
             // before them.
             while let Some((e, m, d)) = stack.pop() {
-                let m = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(m, d, bound);
+                let m = lanes.le(m, d, bound);
                 if m != 0 {
                     (entry, mask) = (e, m);
                     continue 'visit;
@@ -185,37 +249,37 @@ impl Bvh8 {
         counters.nodes_visited += visited;
         counters.primitive_tests += tests;
         for (r, o) in out.iter_mut().enumerate() {
-            if lanes.active & 1 << r != 0 {
+            if active & 1 << r != 0 {
                 *o = best[r];
             }
         }
-        lanes.active
+        active
     }
 
-    /// The any hits of the rays of `rays` that take the fused test, into
-    /// `out`; returns the mask of those rays.
+    /// The any hits of the rays of `rays` that `lanes` takes, into `out`;
+    /// returns the mask of those rays.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,fma,popcnt,bmi1")]
-    fn any_avx512(
+    #[inline(always)]
+    fn any_lanes<L: Lanes>(
         &self,
+        lanes: &L,
         rays: &[Ray],
         counters: &mut TraversalCounters,
         test: &mut impl FnMut(usize, u32, u32) -> bool,
         out: &mut [bool],
     ) -> u16 {
-        use std::arch::x86_64::*;
-        let lanes = avx512::Lanes16::new(rays, &self.root());
-        if lanes.active == 0 {
+        let active = lanes.active();
+        if active == 0 {
             return 0;
         }
         let t_max: [f32; PACKET] =
             std::array::from_fn(|r| rays.get(r).map_or(f32::INFINITY, |ray| ray.t_max));
-        let bound = avx512::widen(&t_max);
+        let bound = lanes.widen(&t_max);
         // Only nodes go through the stack (distances unused).
-        let mut stack = avx512::Stack::new();
+        let mut stack = Stack::new();
         let (mut visited, mut tests) = (0u64, 0u64);
         let mut blocked = 0u16;
-        let (mut entry, mut mask) = (0u32, lanes.active);
+        let (mut entry, mut mask) = (0u32, active);
         'visit: loop {
             visited += u64::from(mask.count_ones());
             let node = &self.nodes[entry as usize];
@@ -231,7 +295,7 @@ impl Bvh8 {
                 }
                 if child & LEAF == 0 {
                     if let Some((c, m)) = next.replace((child, hit)) {
-                        stack.push(c, m, _mm512_setzero_ps());
+                        stack.push(c, m, lanes.zero());
                     }
                     continue;
                 }
@@ -245,7 +309,7 @@ impl Bvh8 {
                         blocked |= 1 << r;
                     }
                 }
-                if blocked == lanes.active {
+                if blocked == active {
                     break 'visit;
                 }
             }
@@ -266,26 +330,134 @@ impl Bvh8 {
         counters.nodes_visited += visited;
         counters.primitive_tests += tests;
         for (r, o) in out.iter_mut().enumerate() {
-            if lanes.active & 1 << r != 0 {
+            if active & 1 << r != 0 {
                 *o = blocked & 1 << r != 0;
             }
         }
-        lanes.active
+        active
+    }
+}
+
+/// The rays of a packet in SIMD lanes, one quantity of all sixteen rays
+/// per [`Lanes::Wide`]: what the packet traversals need of an instruction
+/// set. A value exists only where the CPU has its instructions, so its
+/// methods, inlined into functions compiled for them, may use them.
+#[cfg(target_arch = "x86_64")]
+trait Lanes {
+    /// Sixteen `f32`, one per ray.
+    type Wide: Copy;
+
+    /// The rays that take the packet test (the others are traced alone).
+    fn active(&self) -> u16;
+
+    /// The octant whose child order the packet follows.
+    fn octant(&self) -> u32;
+
+    /// Child `k` of `node` against the rays of `mask` whose intervals end
+    /// at `bound` (widened): the rays that enter its box (a subset of
+    /// `mask`), and the entry distances (lanes outside `mask` unspecified).
+    fn test(&self, node: &Bvh8Node, k: usize, mask: u16, bound: Self::Wide) -> (u16, Self::Wide);
+
+    /// `t_max` widened as the fused test widens it (`NodeVisit::bound`).
+    fn widen(&self, t_max: &[f32; PACKET]) -> Self::Wide;
+
+    /// The rays of `mask` whose `d` is at most `bound`.
+    fn le(&self, mask: u16, d: Self::Wide, bound: Self::Wide) -> u16;
+
+    /// Zeros.
+    fn zero(&self) -> Self::Wide;
+}
+
+/// The rays of a packet as columns: lane `r` of each holds ray `r`'s value,
+/// lanes from `rays.len()` on repeat the last ray's.
+#[cfg(target_arch = "x86_64")]
+struct Columns {
+    o: [[f32; PACKET]; 3],
+    d: [[f32; PACKET]; 3],
+    t_min: [f32; PACKET],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Columns {
+    #[inline(always)]
+    fn new(rays: &[Ray]) -> Columns {
+        let mut c = Columns {
+            o: [[0.0; PACKET]; 3],
+            d: [[0.0; PACKET]; 3],
+            t_min: [0.0; PACKET],
+        };
+        if let Some(last) = rays.last() {
+            for r in 0..PACKET {
+                let ray = rays.get(r).unwrap_or(last);
+                for a in 0..3 {
+                    c.o[a][r] = ray.o[a];
+                    c.d[a][r] = ray.d[a];
+                }
+                c.t_min[r] = ray.t_min;
+            }
+        }
+        c
+    }
+}
+
+/// The packets' stack: entries, their rays, and their rays' entry
+/// distances. Not initialised (zeroing 33 kB would cost more than a
+/// packet's traversal): an entry is read only after it is written.
+#[cfg(target_arch = "x86_64")]
+struct Stack<W> {
+    entries: [MaybeUninit<u32>; STACK],
+    masks: [MaybeUninit<u16>; STACK],
+    dists: [MaybeUninit<W>; STACK],
+    len: usize,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<W: Copy> Stack<W> {
+    #[inline(always)]
+    fn new() -> Self {
+        Stack {
+            entries: [const { MaybeUninit::uninit() }; STACK],
+            masks: [const { MaybeUninit::uninit() }; STACK],
+            dists: [const { MaybeUninit::uninit() }; STACK],
+            len: 0,
+        }
+    }
+
+    /// Pushes an entry (indexing checks the bound; `STACK` covers the
+    /// deepest tree, as for single rays).
+    #[inline(always)]
+    fn push(&mut self, entry: u32, mask: u16, dist: W) {
+        self.entries[self.len].write(entry);
+        self.masks[self.len].write(mask);
+        self.dists[self.len].write(dist);
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, u16, W)> {
+        self.len = self.len.checked_sub(1)?;
+        // SAFETY: entries below the old `len` were written.
+        unsafe {
+            Some((
+                self.entries[self.len].assume_init(),
+                self.masks[self.len].assume_init(),
+                self.dists[self.len].assume_init(),
+            ))
+        }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
-    use super::PACKET;
+    use super::{Lanes, PACKET};
+    use crate::accel::bvh8::Bvh8Node;
     use crate::accel::bvh8::traverse::WIDEN;
-    use crate::accel::bvh8::{Bvh8Node, STACK};
     use crate::math::{Aabb, Ray};
     use std::arch::x86_64::*;
-    use std::mem::MaybeUninit;
 
-    /// Whether the packet traversals can run here (AVX-512F, FMA, POPCNT
-    /// and BMI1; checked once, then cached by the standard library), and
-    /// the portable path is not forced (see
+    /// Whether the packet traversals can run here with AVX-512 (AVX-512F,
+    /// FMA, POPCNT and BMI1; checked once, then cached by the standard
+    /// library), and the portable path is not forced (see
     /// [`crate::accel::force_portable`]).
     #[inline(always)]
     pub(super) fn available() -> bool {
@@ -296,9 +468,11 @@ mod avx512 {
             && !crate::accel::bvh8::traverse::portable_forced()
     }
 
-    /// Each ray's fused-test constants in its lane (`RaySetup::new` for
-    /// sixteen rays at once, operation for operation), the rays that take
-    /// that test, and the first one's octant.
+    /// Each ray's fused-test constants in its lane of one 512-bit register
+    /// (`RaySetup::new` for sixteen rays at once, operation for
+    /// operation), the rays that take that test, and the first one's
+    /// octant. Rays of other octants take their near planes by a masked
+    /// blend and follow the first one's order.
     pub(super) struct Lanes16 {
         inv: [__m512; 3],
         near_c: [__m512; 3],
@@ -306,9 +480,8 @@ mod avx512 {
         t_min: __m512,
         /// Rays with `d[a] < 0`: their near plane on axis `a` is the max.
         negative: [__mmask16; 3],
-        /// The rays that take the fused test (the others are traced alone).
-        pub(super) active: u16,
-        pub(super) octant: u32,
+        active: u16,
+        octant: u32,
     }
 
     impl Lanes16 {
@@ -317,12 +490,9 @@ mod avx512 {
         #[inline]
         pub(super) fn new(rays: &[Ray], root: &Aabb) -> Lanes16 {
             let n = rays.len();
-            // Lane r: ray r's value (lanes from `n` on repeat the last ray's).
-            let lane = |f: &dyn Fn(&Ray) -> f32| -> __m512 {
-                let v: [f32; PACKET] = std::array::from_fn(|r| f(&rays[r.min(n - 1)]));
-                // SAFETY: 16 floats.
-                unsafe { _mm512_loadu_ps(v.as_ptr()) }
-            };
+            let columns = super::Columns::new(rays);
+            // SAFETY: 16 floats.
+            let lane = |c: &[f32; PACKET]| unsafe { _mm512_loadu_ps(c.as_ptr()) };
             let mut lanes = Lanes16 {
                 inv: [_mm512_setzero_ps(); 3],
                 near_c: [_mm512_setzero_ps(); 3],
@@ -335,14 +505,14 @@ mod avx512 {
             if n == 0 {
                 return lanes;
             }
-            lanes.t_min = lane(&|r| r.t_min);
+            lanes.t_min = lane(&columns.t_min);
             let mut active = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(lanes.t_min, _mm512_setzero_ps());
             active &= ((1u32 << n) - 1) as u16;
             let eighth = _mm512_set1_ps(1.0 / (1 << 21) as f32);
             let tiny = _mm512_set1_ps(f32::MIN_POSITIVE);
             for a in 0..3 {
-                let o = lane(&|r| r.o[a]);
-                let inv = _mm512_div_ps(_mm512_set1_ps(1.0), lane(&|r| r.d[a]));
+                let o = lane(&columns.o[a]);
+                let inv = _mm512_div_ps(_mm512_set1_ps(1.0), lane(&columns.d[a]));
                 let inv = _mm512_min_ps(
                     _mm512_max_ps(inv, _mm512_set1_ps(-1e30)),
                     _mm512_set1_ps(1e30),
@@ -368,19 +538,25 @@ mod avx512 {
             });
             lanes
         }
+    }
 
-        /// Child `k` of `node` against the rays of `mask` whose intervals
-        /// end at `bound` (widened): the rays that enter its box, and every
-        /// lane's entry distance.
+    // SAFETY (all): a `Lanes16` exists only where the CPU has AVX-512F and
+    // FMA.
+    impl Lanes for Lanes16 {
+        type Wide = __m512;
+
         #[inline(always)]
-        pub(super) fn test(
-            &self,
-            node: &Bvh8Node,
-            k: usize,
-            mask: u16,
-            bound: __m512,
-        ) -> (u16, __m512) {
-            // SAFETY (all): a `Lanes16` exists only where the CPU has AVX-512F and FMA.
+        fn active(&self) -> u16 {
+            self.active
+        }
+
+        #[inline(always)]
+        fn octant(&self) -> u32 {
+            self.octant
+        }
+
+        #[inline(always)]
+        fn test(&self, node: &Bvh8Node, k: usize, mask: u16, bound: __m512) -> (u16, __m512) {
             let plane = |row: usize| unsafe { _mm512_set1_ps(node.planes[row].0[k]) };
             let t = |a: usize, near: bool| unsafe {
                 let (lo, hi) = (plane(a), plane(a + 3));
@@ -409,57 +585,231 @@ mod avx512 {
                 )
             }
         }
-    }
 
-    /// `t_max` widened as the fused test widens it (`NodeVisit::bound`).
+        #[inline(always)]
+        fn widen(&self, t_max: &[f32; PACKET]) -> __m512 {
+            // SAFETY: 16 floats.
+            unsafe { _mm512_mul_ps(_mm512_loadu_ps(t_max.as_ptr()), _mm512_set1_ps(WIDEN)) }
+        }
+
+        #[inline(always)]
+        fn le(&self, mask: u16, d: __m512, bound: __m512) -> u16 {
+            unsafe { _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(mask, d, bound) }
+        }
+
+        #[inline(always)]
+        fn zero(&self) -> __m512 {
+            unsafe { _mm512_setzero_ps() }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{Lanes, PACKET};
+    use crate::accel::bvh8::Bvh8Node;
+    use crate::accel::bvh8::traverse::WIDEN;
+    use crate::math::{Aabb, Ray};
+    use std::arch::x86_64::*;
+
+    /// Whether the packet traversals can run here with AVX2 (AVX2, FMA,
+    /// POPCNT and BMI1, as the single-ray traversal's 256-bit path), and
+    /// the portable path is not forced.
     #[inline(always)]
-    pub(super) fn widen(t_max: &[f32; PACKET]) -> __m512 {
-        // SAFETY: only called from functions compiled with AVX-512F; 16 floats.
-        unsafe { _mm512_mul_ps(_mm512_loadu_ps(t_max.as_ptr()), _mm512_set1_ps(WIDEN)) }
+    pub(super) fn available() -> bool {
+        std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma")
+            && std::arch::is_x86_feature_detected!("popcnt")
+            && std::arch::is_x86_feature_detected!("bmi1")
+            && !crate::accel::bvh8::traverse::portable_forced()
     }
 
-    /// The packets' stack: entries, their rays, and their rays' entry
-    /// distances. Not initialised (zeroing 33 kB would cost more than a
-    /// packet's traversal): an entry is read only after it is written.
-    pub(super) struct Stack {
-        entries: [MaybeUninit<u32>; STACK],
-        masks: [MaybeUninit<u16>; STACK],
-        dists: [MaybeUninit<__m512>; STACK],
-        len: usize,
+    /// Sixteen rays as two 256-bit halves (rays 0–7 and 8–15), with each
+    /// ray's fused-test constants computed as `RaySetup::new` computes
+    /// them, operation for operation. Only the rays of the first one's
+    /// octant take the packet test, so that a child's near and far planes
+    /// are the same row for all of them: one broadcast each, and no blend,
+    /// which AVX2 pays for where AVX-512 has masks. The others (few in a
+    /// block of camera rays or of shadow rays to one light) are traced
+    /// alone.
+    pub(super) struct Lanes16 {
+        inv: [[__m256; 2]; 3],
+        near_c: [[__m256; 2]; 3],
+        far_c: [[__m256; 2]; 3],
+        t_min: [__m256; 2],
+        /// The rows of the near and far planes of each axis.
+        near: [usize; 3],
+        far: [usize; 3],
+        active: u16,
+        octant: u32,
     }
 
-    impl Stack {
-        #[inline(always)]
-        pub(super) fn new() -> Stack {
-            Stack {
-                entries: [const { MaybeUninit::uninit() }; STACK],
-                masks: [const { MaybeUninit::uninit() }; STACK],
-                dists: [const { MaybeUninit::uninit() }; STACK],
-                len: 0,
+    /// The sign bits of two halves as one mask of sixteen rays.
+    #[inline(always)]
+    fn bits(v: [__m256; 2]) -> u16 {
+        // SAFETY: only inlined into functions compiled with AVX.
+        unsafe { (_mm256_movemask_ps(v[0]) as u16) | (_mm256_movemask_ps(v[1]) as u16) << 8 }
+    }
+
+    impl Lanes16 {
+        /// The caller makes sure the CPU has AVX2 and FMA.
+        #[target_feature(enable = "avx2,fma")]
+        #[inline]
+        pub(super) fn new(rays: &[Ray], root: &Aabb) -> Lanes16 {
+            let n = rays.len();
+            // Half h: rays 8h to 8h + 7.
+            let columns = super::Columns::new(rays);
+            // SAFETY: 16 floats.
+            let lane = |c: &[f32; PACKET]| unsafe {
+                [
+                    _mm256_loadu_ps(c.as_ptr()),
+                    _mm256_loadu_ps(c.as_ptr().add(8)),
+                ]
+            };
+            let zero = _mm256_setzero_ps();
+            let mut lanes = Lanes16 {
+                inv: [[zero; 2]; 3],
+                near_c: [[zero; 2]; 3],
+                far_c: [[zero; 2]; 3],
+                t_min: [zero; 2],
+                near: [0; 3],
+                far: [0; 3],
+                active: 0,
+                octant: 0,
+            };
+            if n == 0 {
+                return lanes;
             }
+            lanes.t_min = lane(&columns.t_min);
+            let mut active = bits(lanes.t_min.map(|t| _mm256_cmp_ps::<_CMP_GE_OQ>(t, zero)));
+            active &= ((1u32 << n) - 1) as u16;
+            let eighth = _mm256_set1_ps(1.0 / (1 << 21) as f32);
+            let tiny = _mm256_set1_ps(f32::MIN_POSITIVE);
+            let sign = _mm256_set1_ps(-0.0);
+            let abs = |v: __m256| _mm256_andnot_ps(sign, v);
+            let mut negative = [0u16; 3];
+            for (a, negative) in negative.iter_mut().enumerate() {
+                let o = lane(&columns.o[a]);
+                let d = lane(&columns.d[a]);
+                let mut reach = [zero; 2];
+                for h in 0..2 {
+                    let inv = _mm256_div_ps(_mm256_set1_ps(1.0), d[h]);
+                    let inv = _mm256_min_ps(
+                        _mm256_max_ps(inv, _mm256_set1_ps(-1e30)),
+                        _mm256_set1_ps(1e30),
+                    );
+                    let oi = _mm256_mul_ps(o[h], inv);
+                    let plane =
+                        |p: f32| abs(_mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(p), o[h]), inv));
+                    let m = _mm256_max_ps(plane(root.min[a]), plane(root.max[a]));
+                    reach[h] = _mm256_add_ps(abs(oi), m);
+                    let far_s = _mm256_add_ps(_mm256_mul_ps(reach[h], eighth), tiny);
+                    let near_s = _mm256_add_ps(_mm256_mul_ps(abs(oi), eighth), tiny);
+                    lanes.inv[a][h] = inv;
+                    lanes.near_c[a][h] = _mm256_add_ps(oi, near_s);
+                    lanes.far_c[a][h] = _mm256_sub_ps(oi, far_s);
+                }
+                *negative = bits(lanes.inv[a].map(|inv| _mm256_cmp_ps::<_CMP_LT_OQ>(inv, zero)));
+                let big = _mm256_set1_ps(1e36);
+                active &= bits(reach.map(|r| _mm256_cmp_ps::<_CMP_LT_OQ>(r, big)));
+            }
+            if active == 0 {
+                return lanes;
+            }
+            // The first ray's octant (bit a: d[a] ≥ 0, as
+            // `RaySetup::octant`), and the rays that share it.
+            let first = active.trailing_zeros();
+            for (a, &neg) in negative.iter().enumerate() {
+                let negative_here = neg >> first & 1 != 0;
+                active &= if negative_here { neg } else { !neg };
+                lanes.octant |= u32::from(!negative_here) << a;
+                lanes.near[a] = a + 3 * usize::from(negative_here);
+                lanes.far[a] = a + 3 * usize::from(!negative_here);
+            }
+            lanes.active = active;
+            lanes
+        }
+    }
+
+    // SAFETY (all): a `Lanes16` exists only where the CPU has AVX2 and FMA.
+    impl Lanes for Lanes16 {
+        type Wide = [__m256; 2];
+
+        #[inline(always)]
+        fn active(&self) -> u16 {
+            self.active
         }
 
-        /// Pushes an entry (indexing checks the bound; `STACK` covers the
-        /// deepest tree, as for single rays).
         #[inline(always)]
-        pub(super) fn push(&mut self, entry: u32, mask: u16, dist: __m512) {
-            self.entries[self.len].write(entry);
-            self.masks[self.len].write(mask);
-            self.dists[self.len].write(dist);
-            self.len += 1;
+        fn octant(&self) -> u32 {
+            self.octant
         }
 
         #[inline(always)]
-        pub(super) fn pop(&mut self) -> Option<(u32, u16, __m512)> {
-            self.len = self.len.checked_sub(1)?;
-            // SAFETY: entries below the old `len` were written.
+        fn test(
+            &self,
+            node: &Bvh8Node,
+            k: usize,
+            mask: u16,
+            bound: [__m256; 2],
+        ) -> (u16, [__m256; 2]) {
+            // Straight-line code: closures and `map` here would not be
+            // inlined into the AVX2 callers, nor their intrinsics.
+            // SAFETY: AVX2 and FMA (see above).
             unsafe {
-                Some((
-                    self.entries[self.len].assume_init(),
-                    self.masks[self.len].assume_init(),
-                    self.dists[self.len].assume_init(),
-                ))
+                let p = |row: usize| _mm256_broadcast_ss(&node.planes[row].0[k]);
+                let [n0, n1, n2] = self.near;
+                let [f0, f1, f2] = self.far;
+                let (pnx, pny, pnz) = (p(n0), p(n1), p(n2));
+                let (pfx, pfy, pfz) = (p(f0), p(f1), p(f2));
+                let mut enter = [_mm256_setzero_ps(); 2];
+                let mut hit = 0u16;
+                for h in 0..2 {
+                    // A half without rays is skipped.
+                    if mask >> (8 * h) & 0xff == 0 {
+                        continue;
+                    }
+                    let nx = _mm256_fmsub_ps(pnx, self.inv[0][h], self.near_c[0][h]);
+                    let ny = _mm256_fmsub_ps(pny, self.inv[1][h], self.near_c[1][h]);
+                    let nz = _mm256_fmsub_ps(pnz, self.inv[2][h], self.near_c[2][h]);
+                    let fx = _mm256_fmsub_ps(pfx, self.inv[0][h], self.far_c[0][h]);
+                    let fy = _mm256_fmsub_ps(pfy, self.inv[1][h], self.far_c[1][h]);
+                    let fz = _mm256_fmsub_ps(pfz, self.inv[2][h], self.far_c[2][h]);
+                    let e = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, self.t_min[h]));
+                    let x = _mm256_min_ps(_mm256_min_ps(fx, fy), _mm256_min_ps(fz, bound[h]));
+                    enter[h] = e;
+                    let inside = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(e, x)) as u16;
+                    hit |= inside << (8 * h);
+                }
+                (hit & mask, enter)
             }
+        }
+
+        #[inline(always)]
+        fn widen(&self, t_max: &[f32; PACKET]) -> [__m256; 2] {
+            // SAFETY: 16 floats.
+            unsafe {
+                let k = _mm256_set1_ps(WIDEN);
+                [
+                    _mm256_mul_ps(_mm256_loadu_ps(t_max.as_ptr()), k),
+                    _mm256_mul_ps(_mm256_loadu_ps(t_max.as_ptr().add(8)), k),
+                ]
+            }
+        }
+
+        #[inline(always)]
+        fn le(&self, mask: u16, d: [__m256; 2], bound: [__m256; 2]) -> u16 {
+            // SAFETY: AVX (see above).
+            unsafe {
+                let le0 = _mm256_cmp_ps::<_CMP_LE_OQ>(d[0], bound[0]);
+                let le1 = _mm256_cmp_ps::<_CMP_LE_OQ>(d[1], bound[1]);
+                bits([le0, le1]) & mask
+            }
+        }
+
+        #[inline(always)]
+        fn zero(&self) -> [__m256; 2] {
+            unsafe { [_mm256_setzero_ps(); 2] }
         }
     }
 }
