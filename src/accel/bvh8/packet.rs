@@ -644,16 +644,12 @@ mod avx2 {
     use crate::math::{Aabb, Ray};
     use std::arch::x86_64::*;
 
-    /// Whether the packet traversals can run here with AVX2 (AVX2, FMA,
-    /// POPCNT and BMI1, as the single-ray traversal's 256-bit path), and
-    /// the portable path is not forced.
+    /// Whether the packet traversals can run here with AVX2: where the
+    /// single-ray traversal's 256-bit path runs (AVX2, FMA, POPCNT and
+    /// BMI1, and the portable path not forced).
     #[inline(always)]
     pub(super) fn available() -> bool {
-        std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("fma")
-            && std::arch::is_x86_feature_detected!("popcnt")
-            && std::arch::is_x86_feature_detected!("bmi1")
-            && !crate::accel::bvh8::traverse::portable_forced()
+        crate::accel::bvh8::traverse::has_avx2()
     }
 
     /// Sixteen rays as two 256-bit halves (rays 0–7 and 8–15), with each

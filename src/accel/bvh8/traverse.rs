@@ -504,7 +504,7 @@ pub(super) fn portable_forced() -> bool {
 /// Whether the 256-bit node visit (AVX2 and FMA) can run here (checked once, then cached
 /// by the standard library) and is not switched off by [`force_portable`].
 #[inline(always)]
-fn has_avx2() -> bool {
+pub(super) fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         // 0: not checked yet; 1: no; 2: yes.
