@@ -223,3 +223,25 @@ fn an_unknown_texture_kind_is_named_as_an_unknown_key() {
         "{e}"
     );
 }
+
+/// Integers with a radix prefix and no digits (`0b`, `0x`, `0o`, found by
+/// the scene fuzzer, which panicked on them) and other malformed integers
+/// are errors at their place, never a panic.
+#[test]
+fn radix_prefixes_without_digits_are_errors() {
+    for bad in ["0b", "0x", "0o", "0x_", "0b2", "0xg"] {
+        let text = GOOD.replace("radius = 1", &format!("radius = {bad}"));
+        // The TOML reader may reject it itself; either way, an error.
+        match parse_scene(&text, Path::new("scenes/bad.toml")) {
+            Err(SceneError::Parse { line, .. }) => assert_eq!(line, 16, "{bad}"),
+            other => panic!("{bad}: {:?}", other.map(|_| ())),
+        }
+    }
+    // Good prefixed integers still read.
+    for (good, r) in [("0x2", 2.0), ("0o10", 8.0), ("0b11", 3.0)] {
+        let text = GOOD.replace("radius = 1", &format!("radius = {good}"));
+        let f = parse_scene(&text, Path::new("good.toml")).unwrap();
+        let shown = format!("{:?}", f.scene.objects[0]);
+        assert!(shown.contains(&format!("{r:?}")), "{good}: {shown}");
+    }
+}

@@ -297,11 +297,17 @@ fn edit_distance(a: &str, b: &str) -> usize {
     row[b.len()]
 }
 
+/// The value of a TOML integer's text in `radix`, or `None` where it is not
+/// one (out of range, or no digits: the reader hands over `0b` as an empty
+/// text, which must not be sliced).
 fn parse_integer(digits: &str, radix: u32) -> Option<i64> {
     let digits = digits.replace('_', "");
     let digits = match radix {
         10 => digits.as_str(),
-        _ => &digits[2..],
+        _ => ["0x", "0o", "0b"]
+            .iter()
+            .find_map(|p| digits.strip_prefix(p))
+            .unwrap_or(&digits),
     };
     i64::from_str_radix(digits, radix).ok()
 }
