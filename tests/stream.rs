@@ -213,9 +213,11 @@ fn scenes_it_cannot_stream_are_traced_one_by_one() {
 }
 
 /// Ray casting and Whitted's integrator stream camera rays through meshes
-/// as packets (`Scene::intersect_packet`). A scene of a transformed torus
-/// instance, a bumpy icosphere and a mirror sphere, rendered both ways: the same image bit for
-/// bit, the same rays and object tests. (The packets may take a node's
+/// as packets (`Scene::intersect_packet`), and ray casting its shadow rays
+/// too (`Scene::segments_packet`). A scene of a transformed torus
+/// instance, a bumpy icosphere, a mirror sphere and a tinted glass sphere
+/// in the light's way, rendered both ways: the same image bit for bit,
+/// the same rays and object tests. (The packets may take a node's
 /// children in another order than a single ray, so the counts of BVH nodes
 /// and triangle tests are not compared; a pixel whose ray hits two
 /// triangles at exactly the same `t` could also differ, and this scene has
@@ -255,6 +257,20 @@ fn raycast_streams_meshes_as_packets_to_the_same_image() {
         },
         ..Material::default_diffuse()
     };
+    // Glass on the way from the ball to the light: shadow rays pass
+    // through it (Fresnel at each crossing, and absorption inside).
+    let glass = Object {
+        shape: Shape::Sphere(Sphere::new(Vec3::new(1.2, 3.0, -1.6), 0.5)),
+        material: 2,
+    };
+    let tinted = Material {
+        kind: glint::scene::MaterialKind::Dielectric {
+            ior: 1.5,
+            absorption: Color::new(0.2, 0.5, 0.9),
+            roughness: 0.0,
+        },
+        ..Material::default_diffuse()
+    };
     let scene = |objects| {
         Scene::new(
             Camera::try_new(
@@ -265,7 +281,7 @@ fn raycast_streams_meshes_as_packets_to_the_same_image() {
             )
             .unwrap(),
             objects,
-            vec![Material::default_diffuse(), mirror.clone()],
+            vec![Material::default_diffuse(), mirror.clone(), tinted.clone()],
             vec![Light::Point {
                 position: Vec3::new(3.0, 6.0, -4.0),
                 intensity: Color::splat(40.0),
@@ -278,9 +294,12 @@ fn raycast_streams_meshes_as_packets_to_the_same_image() {
     // One mesh and a sphere (tested in turn), and two meshes (merged into
     // one, with the sphere in a top-level BVH).
     let scenes = [
-        (scene(vec![ball.clone(), sphere.clone()]), (96, 72, 1)),
         (
-            scene(vec![torus.clone(), ball.clone(), sphere.clone()]),
+            scene(vec![ball.clone(), glass.clone(), sphere.clone()]),
+            (96, 72, 1),
+        ),
+        (
+            scene(vec![torus.clone(), ball.clone(), sphere.clone(), glass]),
             (96, 72, 1),
         ),
         (scene(vec![torus, ball, sphere]), (40, 30, 3)),

@@ -619,6 +619,18 @@ impl Scene {
             counters.intersection_tests += 1;
             return true;
         }
+        self.visit_segment_tlas(ray, counters, visit)
+    }
+
+    /// [`Scene::visit_segment`] after the merged mesh: the objects of the
+    /// top-level BVH.
+    #[inline]
+    fn visit_segment_tlas(
+        &self,
+        ray: &Ray,
+        counters: &mut TraceCounters,
+        mut visit: impl FnMut(u32, &mut TraceCounters) -> bool,
+    ) -> bool {
         let mut tests = 0;
         let mut top = TraversalCounters::default();
         let mut counted = |i: u32, counters: &mut TraceCounters| {
@@ -629,6 +641,96 @@ impl Scene {
         counters.intersection_tests += tests;
         counters.bvh.nodes_visited += top.nodes_visited;
         hit
+    }
+
+    /// Which of up to [`PACKET`] segments (`rays`) an opaque object
+    /// blocks, into `blocked`, as [`Scene::visit_segment`] finds it for
+    /// each with a visitor that answers [`Shape::occludes`] for opaque
+    /// objects and calls `pass(object, ray, counters)` for the others
+    /// (and answers false): `pass` is called for the same objects and
+    /// rays, in the same order for each ray, and the counts of object
+    /// tests are the same. Meshes (and the merged mesh) are tested for
+    /// the rays not yet blocked together, as a packet
+    /// ([`crate::geometry::Mesh::occludes_packet`]); the rest ray by ray.
+    pub fn segments_packet(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraceCounters,
+        blocked: &mut [bool],
+        mut pass: impl FnMut(u32, usize, &mut TraceCounters),
+    ) {
+        let n = rays.len();
+        assert!(n <= PACKET && blocked.len() == n);
+        blocked.fill(false);
+        let mut hit = [false; PACKET];
+        if !self.linear {
+            if let Some(m) = &self.merged {
+                m.mesh.occludes_packet(rays, counters, &mut hit[..n]);
+            }
+            for (j, (b, ray)) in blocked.iter_mut().zip(rays).enumerate() {
+                if hit[j] {
+                    counters.intersection_tests += 1;
+                    *b = true;
+                    continue;
+                }
+                *b = self.visit_segment_tlas(ray, counters, |i, counters| {
+                    if self.is_opaque(i) {
+                        return self.objects[i as usize].shape.occludes(ray, counters);
+                    }
+                    pass(i, j, counters);
+                    false
+                });
+            }
+            return;
+        }
+        let mut open = n;
+        for (i, o) in self.objects.iter().enumerate() {
+            if open == 0 {
+                break;
+            }
+            let i = i as u32;
+            // Ray blocked here: its tests are those of objects 0 to i.
+            let mut block = |b: &mut bool, counters: &mut TraceCounters| {
+                *b = true;
+                open -= 1;
+                counters.intersection_tests += u64::from(i) + 1;
+            };
+            match &o.shape {
+                Shape::Mesh(m) if self.is_opaque(i) => {
+                    // The rays still open, side by side.
+                    let mut sub = [Ray::new(Vec3::ZERO, Vec3::X); PACKET];
+                    let mut index = [0usize; PACKET];
+                    let mut k = 0;
+                    for (j, ray) in rays.iter().enumerate() {
+                        if !blocked[j] {
+                            (sub[k], index[k]) = (*ray, j);
+                            k += 1;
+                        }
+                    }
+                    m.occludes_packet(&sub[..k], counters, &mut hit[..k]);
+                    for q in 0..k {
+                        if hit[q] {
+                            block(&mut blocked[index[q]], counters);
+                        }
+                    }
+                }
+                shape if self.is_opaque(i) => {
+                    for (b, ray) in blocked.iter_mut().zip(rays) {
+                        if !*b && shape.occludes(ray, counters) {
+                            block(b, counters);
+                        }
+                    }
+                }
+                _ => {
+                    for (j, &b) in blocked.iter().enumerate() {
+                        if !b {
+                            pass(i, j, counters);
+                        }
+                    }
+                }
+            }
+        }
+        counters.intersection_tests += (self.objects.len() * open) as u64;
     }
 
     /// Whether [`Scene::intersect_batch`] and [`Scene::occludes_batch`] can

@@ -1,12 +1,14 @@
 //! Appel's ray casting.
 
-use super::whitted::{area_rotation, local_shading, samples_area_lights};
-use super::{
-    Counters, NoRecord, RayKind, Recorder, Tracer, face_forward, from_first_hits, intersect,
+use super::whitted::{
+    LightTerm, area_rotation, local_shading, local_terms, samples_area_lights, transmittance_packet,
 };
-use crate::math::{Color, Ray};
+use super::{Counters, RayKind, Recorder, Tracer, face_forward, intersect};
+use crate::accel::PACKET;
+use crate::math::{Color, Ray, Vec3};
 use crate::render::sampler::PixelSampler;
-use crate::scene::{Hit, Scene};
+use crate::scene::{Hit, Scene, SurfaceInteraction};
+use std::cell::RefCell;
 
 /// Appel's ray casting: the first hit along the eye ray, shaded by the local
 /// terms of its material with a shadow ray to each light. No secondary rays.
@@ -35,12 +37,98 @@ impl Raycast {
         counters: &mut Counters,
         rec: &mut R,
     ) -> Color {
-        let si = scene.surface(ray, hit);
-        let wo = -ray.d.normalize();
-        let n_facing = face_forward(si.ns, face_forward(si.n, wo));
+        let (si, wo, n_facing) = at_hit(scene, ray, hit);
         let l = local_shading(scene, &si, wo, n_facing, area, counters, rec);
         rec.end(l, Color::ONE, l);
         l
+    }
+}
+
+/// The surface at a camera ray's hit, the unit direction back along the
+/// ray, and the shading normal on that side.
+#[inline(always)]
+fn at_hit(scene: &Scene, ray: &Ray, hit: &Hit) -> (SurfaceInteraction, Vec3, Vec3) {
+    let si = scene.surface(ray, hit);
+    let wo = -ray.d.normalize();
+    let n_facing = face_forward(si.ns, face_forward(si.n, wo));
+    (si, wo, n_facing)
+}
+
+/// Per-thread buffers of [`Raycast::trace_stream`]: each hit's light
+/// terms (with the hit's place in its packet), the order in which their
+/// shadow rays are traced, and their transmittances.
+#[derive(Default)]
+struct Scratch {
+    terms: Vec<(usize, LightTerm)>,
+    order: Vec<usize>,
+    visibility: Vec<Color>,
+}
+
+thread_local! {
+    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
+}
+
+impl Raycast {
+    /// A packet of camera rays (at most [`PACKET`]): their first hits
+    /// together ([`Scene::intersect_packet`]), each hit's local terms,
+    /// then all the shadow rays, sorted by light (those to one light from
+    /// neighbouring hits are coherent), in packets
+    /// ([`transmittance_packet`]); each term is added to its hit in the
+    /// order [`local_shading`] adds it, so the radiance is the same bit for
+    /// bit.
+    fn trace_packet(
+        &self,
+        scene: &Scene,
+        rays: &[Ray],
+        counters: &mut Counters,
+        out: &mut [Color],
+        s: &mut Scratch,
+    ) {
+        let mut hits = [None; PACKET];
+        let hits = &mut hits[..rays.len()];
+        scene.intersect_packet(rays, &mut counters.trace, hits);
+        s.terms.clear();
+        for (j, ((ray, hit), out)) in rays.iter().zip(hits.iter()).zip(out.iter_mut()).enumerate() {
+            *out = match hit {
+                None => self.escaped(scene, ray),
+                Some(hit) => {
+                    let (si, wo, n_facing) = at_hit(scene, ray, hit);
+                    let terms = &mut s.terms;
+                    local_terms(scene, &si, wo, n_facing, None, |_, term| {
+                        counters.rays.shadow += 1;
+                        terms.push((j, term));
+                    })
+                }
+            };
+        }
+        s.order.clear();
+        s.order.extend(0..s.terms.len());
+        let terms = &s.terms;
+        s.order.sort_unstable_by_key(|&k| (terms[k].1.light, k));
+        s.visibility.clear();
+        s.visibility.resize(terms.len(), Color::ZERO);
+        let mut shadow_rays = [Ray::new(Vec3::ZERO, Vec3::X); PACKET];
+        let mut visibility = [Color::ZERO; PACKET];
+        for chunk in s.order.chunks(PACKET) {
+            let n = chunk.len();
+            for (r, &k) in shadow_rays.iter_mut().zip(chunk) {
+                *r = terms[k].1.ray;
+            }
+            transmittance_packet(
+                scene,
+                &shadow_rays[..n],
+                &mut counters.trace,
+                &mut visibility[..n],
+            );
+            for (&k, &v) in chunk.iter().zip(&visibility[..n]) {
+                s.visibility[k] = v;
+            }
+        }
+        for ((j, term), &v) in terms.iter().zip(&s.visibility) {
+            if v != Color::ZERO {
+                out[*j] += term.gain.radiance(v);
+            }
+        }
     }
 }
 
@@ -74,8 +162,8 @@ impl Tracer for Raycast {
         !samples_area_lights(scene, self.light_samples)
     }
 
-    /// The camera rays' first hits found in packets ([`from_first_hits`]),
-    /// then each shaded as [`Tracer::trace`] shades it.
+    /// Packets of camera rays with their shadow rays in packets too
+    /// ([`Raycast::trace_packet`]).
     fn trace_stream(
         &self,
         scene: &Scene,
@@ -86,9 +174,11 @@ impl Tracer for Raycast {
         if !Tracer::streams(self, scene) {
             return false;
         }
-        from_first_hits(scene, rays, counters, out, |ray, hit, counters| match hit {
-            None => self.escaped(scene, ray),
-            Some(hit) => self.shade(scene, ray, &hit, None, counters, &mut NoRecord),
+        SCRATCH.with(|s| {
+            let s = &mut s.borrow_mut();
+            for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+                self.trace_packet(scene, rays, counters, out, s);
+            }
         });
         true
     }

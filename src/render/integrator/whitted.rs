@@ -2,6 +2,7 @@
 //! illumination model (which [`super::Raycast`] shares).
 
 use super::{Counters, MAX_RAY_TREE, RayKind, Recorder, Tracer, face_forward, intersect};
+use crate::accel::PACKET;
 use crate::light::Light;
 use crate::math::{Color, Ray, Vec3};
 use crate::render::sampler::PixelSampler;
@@ -600,6 +601,29 @@ pub fn transmittance(scene: &Scene, ray: &Ray, counters: &mut TraceCounters) -> 
         false
     });
     if blocked { Color::ZERO } else { tr }
+}
+
+/// [`transmittance`] for each of up to [`PACKET`] shadow rays, into `out`:
+/// the same values, and the same counts of object tests; meshes are
+/// tested for the rays together ([`Scene::segments_packet`]).
+pub fn transmittance_packet(
+    scene: &Scene,
+    rays: &[Ray],
+    counters: &mut TraceCounters,
+    out: &mut [Color],
+) {
+    let n = rays.len();
+    assert!(n <= PACKET && out.len() == n);
+    let mut blocked = [false; PACKET];
+    out.fill(Color::ONE);
+    scene.segments_packet(rays, counters, &mut blocked[..n], |i, j, counters| {
+        through_glass(scene, i, &rays[j], counters, &mut out[j]);
+    });
+    for (tr, &b) in out.iter_mut().zip(&blocked[..n]) {
+        if b {
+            *tr = Color::ZERO;
+        }
+    }
 }
 
 /// [`transmittance`]'s factors for object `i`, a dielectric the shadow ray
