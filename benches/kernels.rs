@@ -10,11 +10,15 @@
 //! - `kernels/closest_packets/MESH`: the same rays in the packets of 16
 //!   that the render traces (16 pixels of a tile's row: with a width that
 //!   is a multiple of 16, 16 consecutive camera rays);
-//! - `kernels/any/MESH`: the any-hit kernel on its shadow rays.
+//! - `kernels/any/MESH`: the any-hit kernel on its shadow rays;
+//! - `kernels/any_packets/MESH`: the same rays in packets of 16 (the
+//!   render sends the shadow rays of a packet of camera rays together,
+//!   sorted by light: with one light, those of the packet's hits, at most
+//!   16, so these full packets flatter the kernel a little).
 //!
 //! Last it prints, per mesh, the render's time over the sum of the
-//! kernels' (closest and any; closest in packets and any), medians of 15
-//! runs each, taken in turns in one process.
+//! kernels' (closest and any; both in packets), medians of 15 runs each,
+//! taken in turns in one process.
 //!
 //! Meshes: a generated bumpy icosphere of 1.31M triangles (always) and the
 //! meshes of `../shared/data/` when that folder is there (it says so when it
@@ -207,6 +211,24 @@ fn bench(c: &mut Criterion) {
                 })
                 .sum::<usize>()
         };
+        let any_packets = || {
+            shadow
+                .par_chunks(4096)
+                .map(|chunk| {
+                    let mut c = TraceCounters::default();
+                    let mut blocked = [false; PACKET];
+                    chunk
+                        .chunks(PACKET)
+                        .map(|p| {
+                            let blocked = &mut blocked[..p.len()];
+                            instance.occludes_packet(p, &mut c, blocked);
+                            blocked.iter().filter(|&&b| b).count()
+                        })
+                        .sum::<usize>()
+                })
+                .sum::<usize>()
+        };
+        assert_eq!(any(), any_packets(), "packets blocked as often");
         let whole = || render(black_box(&scene), black_box(&settings), &|_| {}).expect("renders");
         let mut g = c.benchmark_group("kernels");
         g.sample_size(15);
@@ -219,9 +241,12 @@ fn bench(c: &mut Criterion) {
         });
         g.throughput(Throughput::Elements(shadow.len() as u64));
         g.bench_function(BenchmarkId::new("any", &name), |b| b.iter(any));
+        g.bench_function(BenchmarkId::new("any_packets", &name), |b| {
+            b.iter(any_packets)
+        });
         g.finish();
         // Side by side, in turns.
-        let mut t = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
+        let mut t = [Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new()];
         for _ in 0..5 {
             t[0].push(median_seconds(3, || {
                 black_box(whole());
@@ -235,21 +260,25 @@ fn bench(c: &mut Criterion) {
             t[3].push(median_seconds(3, || {
                 black_box(closest_packets());
             }));
+            t[4].push(median_seconds(3, || {
+                black_box(any_packets());
+            }));
         }
-        let [r, k1, k2, k3] = t.map(|mut v| {
+        let [r, k1, k2, k3, k4] = t.map(|mut v| {
             v.sort_by(f64::total_cmp);
             v[v.len() / 2]
         });
         ratios.push(format!(
             "{name}: render {:.1} ms, kernels {:.1} ms (closest {:.1} + any {:.1}): render / kernels = {:.2}; \
-             with closest in packets ({:.1} ms): {:.2}",
+             in packets (closest {:.1} + any {:.1} ms): {:.2}",
             r * 1e3,
             (k1 + k2) * 1e3,
             k1 * 1e3,
             k2 * 1e3,
             r / (k1 + k2),
             k3 * 1e3,
-            r / (k3 + k2)
+            k4 * 1e3,
+            r / (k3 + k4)
         ));
     }
     for line in ratios {
