@@ -1,5 +1,6 @@
 //! Whitted's integrator traces scenes of spheres, planes and boxes many
-//! camera rays at a time (breadth first, in SIMD batches). These tests
+//! camera rays at a time (breadth first, in SIMD batches), and ray
+//! casting their camera and shadow rays in SIMD batches too. These tests
 //! render scenes both ways, the other way being the integrator one ray at
 //! a time (depth first), and ask for the same image bit for bit and the
 //! same counts.
@@ -68,26 +69,34 @@ fn render_both_ways(
     (a, b)
 }
 
-/// Renders `text` (a scene file) both ways and compares; returns whether
-/// it streamed breadth first.
+/// Renders `text` (a scene file) both ways with Whitted's integrator and
+/// with ray casting (which streams such scenes in SIMD batches, shadow
+/// rays too) and compares; returns whether Whitted's streamed breadth
+/// first.
 fn same_both_ways(text: &str, width: u32, height: u32, spp: u32, max_depth: i32) -> bool {
     let file = parse_scene(text, Path::new("stream.toml")).unwrap_or_else(|e| panic!("{e}"));
-    let settings = RenderSettings {
-        width,
-        height,
-        spp,
-        max_depth,
-        integrator: IntegratorKind::Whitted,
-        ..file.settings.clone()
-    };
-    let integrator = AnyIntegrator::new(&settings);
-    let streams = match integrator {
-        AnyIntegrator::Whitted(w) => w.streams(&file.scene) && w.breadth_first(&file.scene),
-        _ => unreachable!(),
-    };
-    let (a, b) = render_both_ways(&file.scene, &settings, integrator);
-    assert_eq!(counts(&a), counts(&b));
-    streams
+    let mut breadth_first = false;
+    for kind in [IntegratorKind::Whitted, IntegratorKind::Raycast] {
+        let settings = RenderSettings {
+            width,
+            height,
+            spp,
+            max_depth,
+            integrator: kind,
+            ..file.settings.clone()
+        };
+        let integrator = AnyIntegrator::new(&settings);
+        match integrator {
+            AnyIntegrator::Whitted(w) => {
+                breadth_first = w.streams(&file.scene) && w.breadth_first(&file.scene)
+            }
+            AnyIntegrator::Raycast(_) => {}
+            _ => unreachable!(),
+        };
+        let (a, b) = render_both_ways(&file.scene, &settings, integrator);
+        assert_eq!(counts(&a), counts(&b), "{kind:?}");
+    }
+    breadth_first
 }
 
 #[test]

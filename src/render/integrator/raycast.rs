@@ -1,10 +1,13 @@
 //! Appel's ray casting.
 
+use super::stream::transmittance_batch;
 use super::whitted::{
     LightTerm, area_rotation, local_shading, local_terms, samples_area_lights, transmittance_packet,
 };
 use super::{Counters, RayKind, Recorder, Tracer, face_forward, intersect};
 use crate::accel::PACKET;
+use crate::geometry::ShapeHit;
+use crate::geometry::batch::{BATCH, NO_HIT, RayBatch};
 use crate::math::{Color, Ray, Vec3};
 use crate::render::sampler::PixelSampler;
 use crate::scene::{Hit, Scene, SurfaceInteraction};
@@ -55,13 +58,14 @@ fn at_hit(scene: &Scene, ray: &Ray, hit: &Hit) -> (SurfaceInteraction, Vec3, Vec
 }
 
 /// Per-thread buffers of [`Raycast::trace_stream`]: each hit's light
-/// terms (with the hit's place in its packet), the order in which their
-/// shadow rays are traced, and their transmittances.
+/// terms (with the hit's place among the rays), the order in which their
+/// shadow rays are traced, their transmittances, and a SIMD batch.
 #[derive(Default)]
 struct Scratch {
     terms: Vec<(usize, LightTerm)>,
     order: Vec<usize>,
     visibility: Vec<Color>,
+    batch: Option<Box<RayBatch>>,
 }
 
 thread_local! {
@@ -69,14 +73,17 @@ thread_local! {
 }
 
 impl Raycast {
-    /// A packet of camera rays (at most [`PACKET`]): their first hits
-    /// together ([`Scene::intersect_packet`]), each hit's local terms,
+    /// The camera rays' first hits together, then each hit's local terms,
     /// then all the shadow rays, sorted by light (those to one light from
-    /// neighbouring hits are coherent), in packets
-    /// ([`transmittance_packet`]); each term is added to its hit in the
-    /// order [`local_shading`] adds it, so the radiance is the same bit for
-    /// bit.
-    fn trace_packet(
+    /// neighbouring hits are coherent) and tested many at a time; each
+    /// term is added to its hit in the order [`local_shading`] adds it,
+    /// so the radiance is the same bit for bit. Scenes of a few spheres,
+    /// planes and boxes ([`Scene::batchable`]) take both in SIMD batches
+    /// of [`BATCH`] rays ([`Scene::intersect_batch`],
+    /// [`transmittance_batch`]); others in packets of [`PACKET`]
+    /// ([`Scene::intersect_packet`], [`transmittance_packet`]: meshes
+    /// traversed by the rays together).
+    fn trace_many(
         &self,
         scene: &Scene,
         rays: &[Ray],
@@ -84,22 +91,46 @@ impl Raycast {
         out: &mut [Color],
         s: &mut Scratch,
     ) {
-        let mut hits = [None; PACKET];
-        let hits = &mut hits[..rays.len()];
-        scene.intersect_packet(rays, &mut counters.trace, hits);
         s.terms.clear();
-        for (j, ((ray, hit), out)) in rays.iter().zip(hits.iter()).zip(out.iter_mut()).enumerate() {
-            *out = match hit {
-                None => self.escaped(scene, ray),
-                Some(hit) => {
-                    let (si, wo, n_facing) = at_hit(scene, ray, hit);
-                    let terms = &mut s.terms;
-                    local_terms(scene, &si, wo, n_facing, None, |_, term| {
-                        counters.rays.shadow += 1;
-                        terms.push((j, term));
-                    })
+        let mut shade = |j: usize, ray: &Ray, hit: Option<Hit>, counters: &mut Counters| match hit {
+            None => self.escaped(scene, ray),
+            Some(hit) => {
+                let (si, wo, n_facing) = at_hit(scene, ray, &hit);
+                let terms = &mut s.terms;
+                local_terms(scene, &si, wo, n_facing, None, |_, term| {
+                    counters.rays.shadow += 1;
+                    terms.push((j, term));
+                })
+            }
+        };
+        let batched = scene.batchable();
+        let mut batch = s.batch.take().unwrap_or_else(|| RayBatch::new(&[]));
+        if batched {
+            for (c, (rays, out)) in rays.chunks(BATCH).zip(out.chunks_mut(BATCH)).enumerate() {
+                batch.fill(rays);
+                let best = scene.intersect_batch(&batch, &mut counters.trace);
+                for (i, (ray, out)) in rays.iter().zip(out).enumerate() {
+                    let hit = (best.object[i] != NO_HIT).then(|| Hit {
+                        t: best.t[i],
+                        object: best.object[i],
+                        shape: ShapeHit {
+                            t: best.t[i],
+                            prim: best.prim[i],
+                            ..ShapeHit::default()
+                        },
+                    });
+                    *out = shade(c * BATCH + i, ray, hit, counters);
                 }
-            };
+            }
+        } else {
+            let mut hits = [None; PACKET];
+            for (c, (rays, out)) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)).enumerate() {
+                let hits = &mut hits[..rays.len()];
+                scene.intersect_packet(rays, &mut counters.trace, hits);
+                for (i, ((ray, &hit), out)) in rays.iter().zip(hits.iter()).zip(out).enumerate() {
+                    *out = shade(c * PACKET + i, ray, hit, counters);
+                }
+            }
         }
         s.order.clear();
         s.order.extend(0..s.terms.len());
@@ -107,23 +138,30 @@ impl Raycast {
         s.order.sort_unstable_by_key(|&k| (terms[k].1.light, k));
         s.visibility.clear();
         s.visibility.resize(terms.len(), Color::ZERO);
-        let mut shadow_rays = [Ray::new(Vec3::ZERO, Vec3::X); PACKET];
-        let mut visibility = [Color::ZERO; PACKET];
-        for chunk in s.order.chunks(PACKET) {
+        let mut shadow_rays = [Ray::new(Vec3::ZERO, Vec3::X); BATCH];
+        let mut visibility = [Color::ZERO; BATCH];
+        for chunk in s.order.chunks(if batched { BATCH } else { PACKET }) {
             let n = chunk.len();
             for (r, &k) in shadow_rays.iter_mut().zip(chunk) {
                 *r = terms[k].1.ray;
             }
-            transmittance_packet(
-                scene,
-                &shadow_rays[..n],
-                &mut counters.trace,
-                &mut visibility[..n],
-            );
+            let shadow_rays = &shadow_rays[..n];
+            if batched {
+                batch.fill(shadow_rays);
+                visibility = transmittance_batch(scene, &batch, shadow_rays, &mut counters.trace);
+            } else {
+                transmittance_packet(
+                    scene,
+                    shadow_rays,
+                    &mut counters.trace,
+                    &mut visibility[..n],
+                );
+            }
             for (&k, &v) in chunk.iter().zip(&visibility[..n]) {
                 s.visibility[k] = v;
             }
         }
+        s.batch = Some(batch);
         for ((j, term), &v) in terms.iter().zip(&s.visibility) {
             if v != Color::ZERO {
                 out[*j] += term.gain.radiance(v);
@@ -162,8 +200,8 @@ impl Tracer for Raycast {
         !samples_area_lights(scene, self.light_samples)
     }
 
-    /// Packets of camera rays with their shadow rays in packets too
-    /// ([`Raycast::trace_packet`]).
+    /// The camera rays and their shadow rays many at a time
+    /// ([`Raycast::trace_many`]).
     fn trace_stream(
         &self,
         scene: &Scene,
@@ -174,12 +212,7 @@ impl Tracer for Raycast {
         if !Tracer::streams(self, scene) {
             return false;
         }
-        SCRATCH.with(|s| {
-            let s = &mut s.borrow_mut();
-            for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
-                self.trace_packet(scene, rays, counters, out, s);
-            }
-        });
+        SCRATCH.with(|s| self.trace_many(scene, rays, counters, out, &mut s.borrow_mut()));
         true
     }
 }

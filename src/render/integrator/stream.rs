@@ -253,7 +253,7 @@ impl Whitted {
 /// [`super::transmittance`] for a batch of shadow rays (`rays`, also as
 /// `batch`): opaque objects and clear glass spheres are tested against all
 /// rays at once, other glass ray by ray; the same values and counts.
-fn transmittance_batch(
+pub(super) fn transmittance_batch(
     scene: &Scene,
     batch: &RayBatch,
     rays: &[Ray],
