@@ -27,7 +27,7 @@ pub use texture::{CheckerMode, Texture};
 use crate::accel::{Bvh, PACKET, Tlas, TraversalCounters};
 pub use crate::geometry::TraceCounters;
 use crate::geometry::batch::{
-    BATCH, Closest, RayBatch, any_batch, closest_batch, sphere_glass_lanes,
+    BATCH, Closest, NO_HIT, RayBatch, any_batch, closest_batch, sphere_glass_lanes,
 };
 use crate::geometry::{Shape, ShapeHit, SurfacePoint};
 use crate::light::LightSet;
@@ -46,6 +46,24 @@ pub struct Hit {
     pub t: f32,
     pub object: u32,
     pub shape: ShapeHit,
+}
+
+impl Closest {
+    /// Ray `j`'s hit in the batch's answer ([`Scene::intersect_batch`]),
+    /// as [`Scene::intersect`] gives it, if it hit anything.
+    #[inline]
+    pub fn hit(&self, j: usize) -> Option<Hit> {
+        let t = self.t[j];
+        (self.object[j] != NO_HIT).then(|| Hit {
+            t,
+            object: self.object[j],
+            shape: ShapeHit {
+                t,
+                prim: self.prim[j],
+                ..ShapeHit::default()
+            },
+        })
+    }
 }
 
 /// Everything shading needs to know about a hit point.

@@ -6,8 +6,7 @@ use super::whitted::{
 };
 use super::{Counters, RayKind, Recorder, Tracer, face_forward, intersect};
 use crate::accel::PACKET;
-use crate::geometry::ShapeHit;
-use crate::geometry::batch::{BATCH, NO_HIT, RayBatch};
+use crate::geometry::batch::{BATCH, RayBatch};
 use crate::math::{Color, Ray, Vec3};
 use crate::render::sampler::PixelSampler;
 use crate::scene::{Hit, Scene, SurfaceInteraction};
@@ -110,16 +109,7 @@ impl Raycast {
                 batch.fill(rays);
                 let best = scene.intersect_batch(&batch, &mut counters.trace);
                 for (i, (ray, out)) in rays.iter().zip(out).enumerate() {
-                    let hit = (best.object[i] != NO_HIT).then(|| Hit {
-                        t: best.t[i],
-                        object: best.object[i],
-                        shape: ShapeHit {
-                            t: best.t[i],
-                            prim: best.prim[i],
-                            ..ShapeHit::default()
-                        },
-                    });
-                    *out = shade(c * BATCH + i, ray, hit, counters);
+                    *out = shade(c * BATCH + i, ray, best.hit(i), counters);
                 }
             }
         } else {

@@ -19,8 +19,7 @@
 
 use super::whitted::{AtHit, LightGain, local_terms, samples_area_lights, through_glass};
 use super::{Counters, MAX_RAY_TREE, NoRecord, Tracer, Whitted, from_first_hits};
-use crate::geometry::ShapeHit;
-use crate::geometry::batch::{BATCH, NO_HIT, RayBatch};
+use crate::geometry::batch::{BATCH, RayBatch};
 use crate::math::{Color, Ray};
 use crate::render::sampler::PixelSampler;
 use crate::scene::{Hit, Scene, TraceCounters};
@@ -154,20 +153,11 @@ impl Whitted {
                         first_child: 0,
                         children: 0,
                     };
-                    if best.object[j] == NO_HIT {
-                        node.local = Tracer::escaped(self, scene, ray);
-                    } else {
-                        let t = best.t[j];
-                        let hit = Hit {
-                            t,
-                            object: best.object[j],
-                            shape: ShapeHit {
-                                t,
-                                prim: best.prim[j],
-                                ..ShapeHit::default()
-                            },
-                        };
-                        self.shade(scene, ray, p, &hit, next_base, counters, s, &mut node);
+                    match best.hit(j) {
+                        None => node.local = Tracer::escaped(self, scene, ray),
+                        Some(hit) => {
+                            self.shade(scene, ray, p, &hit, next_base, counters, s, &mut node)
+                        }
                     }
                     s.nodes.push(node);
                 }
