@@ -214,6 +214,98 @@ fn mixed_scene_streams_to_the_same_image() {
     assert!(same_both_ways(MIXED, 32, 24, 3, 9));
 }
 
+/// A scene whose hits Whitted's stream shades in SIMD lanes (point lights
+/// only; spheres, boxes and a plane; diffuse, mirror and clear glass;
+/// solid and planar checkerboards), with two objects it shades one by one
+/// among them (absorbing glass, a conductor).
+const LANES: &str = r#"
+[camera]
+position = [0.3, 1.1, -3.0]
+look_at = [0, 0.6, 0]
+up = [0, 1, 0]
+fov = 65
+
+[render]
+integrator = "whitted"
+min_weight = 1e-4
+background = [0.1, 0.2, 0.5]
+ambient = [0.2, 0.25, 0.3]
+
+[materials]
+floor = { type = "diffuse", texture = { checker = [[0.9, 0.9, 0.9], [0.2, 0.3, 0.8]], scale = 0.5, mode = "solid" }, ambient = 0.1, specular = 0.3, shininess = 20 }
+tiles = { type = "diffuse", texture = { checker = [[0.8, 0.2, 0.1], [0.9, 0.8, 0.1]], scale = 0.15 }, ambient = 0.2 }
+cubes = { type = "diffuse", texture = { checker = [[0.1, 0.7, 0.2], [0.9, 0.9, 0.9]], scale = 0.2, mode = "solid" }, specular = 0.6, shininess = 80 }
+mirror = { type = "mirror", reflectance = [0.9, 0.8, 0.7], color = [0.3, 0.3, 0.3], diffuse = 0.2, specular = 0.5, shininess = 50 }
+glass = { type = "dielectric", ior = 1.5, specular = 0.9, shininess = 500 }
+water = { type = "dielectric", ior = 1.33 }
+tinted = { type = "dielectric", ior = 1.4, absorption = [0.5, 0.1, 0.05] }
+gold = { type = "conductor", metal = "Au", specular = 0.6, shininess = 40 }
+
+[[light]]
+type = "point"
+position = [2, 4, -3]
+intensity = 30
+
+[[light]]
+type = "point"
+position = [-2, 3, -1]
+intensity = [20, 10, 5]
+
+[[object]]
+shape = "plane"
+point = [0, 0, 0]
+normal = [0, 1, 0]
+material = "floor"
+
+[[object]]
+shape = "box"
+min = [-1.9, 0, -0.2]
+max = [-1.1, 0.5, 0.6]
+material = "tiles"
+
+[[object]]
+shape = "box"
+min = [0.6, 0, 0.2]
+max = [1.4, 0.8, 1.0]
+material = "water"
+
+[[object]]
+shape = "sphere"
+center = [-0.8, 0.6, 0.9]
+radius = 0.6
+material = "mirror"
+
+[[object]]
+shape = "sphere"
+center = [0.25, 0.45, -1.3]
+radius = 0.45
+material = "glass"
+
+[[object]]
+shape = "sphere"
+center = [1.3, 0.35, -0.5]
+radius = 0.35
+material = "tinted"
+
+[[object]]
+shape = "sphere"
+center = [-0.9, 0.25, -1.2]
+radius = 0.25
+material = "gold"
+
+[[object]]
+shape = "sphere"
+center = [0.3, 0.3, 1.4]
+radius = 0.3
+material = "cubes"
+"#;
+
+#[test]
+fn scene_shaded_in_lanes_streams_to_the_same_image() {
+    assert!(same_both_ways(LANES, 64, 48, 1, 8));
+    assert!(same_both_ways(LANES, 32, 24, 2, 3));
+}
+
 #[test]
 fn scenes_it_cannot_stream_are_traced_one_by_one() {
     // Area lights sampled with random numbers: not streamed, the same image.

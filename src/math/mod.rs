@@ -7,7 +7,7 @@ mod ray;
 mod transform;
 
 pub use aabb::{Aabb, SlabHit};
-pub use float::{MACHINE_EPSILON, MIN_OFFSET, floor, gamma, offset_ray_origin};
+pub use float::{MACHINE_EPSILON, MIN_OFFSET, floor, gamma, nudge, offset_ray_origin};
 pub use interval::Interval;
 pub use ray::{Ray, SHADOW_EPSILON};
 pub use transform::Transform;

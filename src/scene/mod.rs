@@ -22,7 +22,7 @@ pub use load::{
 };
 pub use material::{Material, MaterialKind};
 pub use mesh_scene::{MeshSceneError, mesh_scene};
-pub use texture::{CheckerMode, Texture};
+pub use texture::{CheckerMode, Texture, is_even};
 
 use crate::accel::{Bvh, PACKET, Tlas, TraversalCounters};
 pub use crate::geometry::TraceCounters;
@@ -848,7 +848,7 @@ impl Scene {
 /// loops the compiler vectorises. `f` must be inlined (`#[inline(always)]`
 /// on the closure) for its code to be compiled for the wider unit.
 #[inline(always)]
-fn widest<R>(f: impl FnOnce() -> R) -> R {
+pub(crate) fn widest<R>(f: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]
     {
         #[target_feature(enable = "avx512f")]

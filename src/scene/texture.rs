@@ -62,7 +62,7 @@ impl Texture {
 /// 0.0` (true for ±0 and for every float from 2^24 on; false for ±∞ and
 /// NaN), without the slow `fmodf` it calls.
 #[inline]
-fn is_even(cells: f32) -> bool {
+pub fn is_even(cells: f32) -> bool {
     cells.is_finite() & (floor(cells * 0.5) * 2.0 == cells)
 }
 

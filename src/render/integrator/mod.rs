@@ -6,6 +6,7 @@
 mod path;
 mod raycast;
 mod stream;
+mod wave;
 mod whitted;
 
 pub use path::Path;

@@ -17,6 +17,7 @@
 //! depth first, as one by one (the same image, but where two triangles
 //! are hit at exactly the same `t`, which may name the other one).
 
+use super::wave::{Lanes, Plan};
 use super::whitted::{AtHit, LightGain, local_terms, samples_area_lights, through_glass};
 use super::{Counters, MAX_RAY_TREE, NoRecord, Tracer, Whitted, from_first_hits};
 use crate::geometry::batch::{BATCH, RayBatch};
@@ -66,6 +67,7 @@ struct Scratch {
     shadows: Vec<Shadow>,
     shadow_rays: Vec<Ray>,
     batch: Option<Box<RayBatch>>,
+    lanes: Option<Box<Lanes>>,
 }
 
 thread_local! {
@@ -134,6 +136,9 @@ impl Whitted {
             weight: 1.0,
         }));
         let mut batch = s.batch.take().unwrap_or_else(|| RayBatch::new(&[]));
+        let plan = Plan::new(scene);
+        let mut lanes = s.lanes.take().unwrap_or_else(Lanes::new);
+        let mut weights = [0.0f32; BATCH];
         while !s.wave.0.is_empty() {
             s.next.0.clear();
             s.next.1.clear();
@@ -145,6 +150,12 @@ impl Whitted {
             for (rays, pending) in wave.0.chunks(BATCH).zip(wave.1.chunks(BATCH)) {
                 batch.fill(rays);
                 let best = scene.intersect_batch(&batch, &mut counters.trace);
+                if let Some(plan) = &plan {
+                    for (w, p) in weights.iter_mut().zip(pending) {
+                        *w = p.weight;
+                    }
+                    lanes.shade(plan, &batch, &best, &weights, self.min_weight);
+                }
                 for (j, (ray, p)) in rays.iter().zip(pending).enumerate() {
                     let mut node = Node {
                         local: Color::ZERO,
@@ -155,9 +166,12 @@ impl Whitted {
                     };
                     match best.hit(j) {
                         None => node.local = Tracer::escaped(self, scene, ray),
-                        Some(hit) => {
-                            self.shade(scene, ray, p, &hit, next_base, counters, s, &mut node)
-                        }
+                        Some(hit) => match &plan {
+                            Some(plan) if lanes.shaded(j) => self.shade_lane(
+                                plan, &lanes, j, hit.object, p, next_base, counters, s, &mut node,
+                            ),
+                            _ => self.shade(scene, ray, p, &hit, next_base, counters, s, &mut node),
+                        },
                     }
                     s.nodes.push(node);
                 }
@@ -177,6 +191,7 @@ impl Whitted {
             std::mem::swap(&mut s.wave, &mut s.next);
         }
         s.batch = Some(batch);
+        s.lanes = Some(lanes);
         // Children come after their parents: put the radiance together from
         // the last ray to the first.
         s.radiance.clear();
@@ -228,6 +243,65 @@ impl Whitted {
             let secondaries = self.secondaries(scene, &at, p.weight, &mut super::NoRecord);
             for sec in secondaries.iter().flatten() {
                 sec.count(counters);
+                node.children += 1;
+                s.next.0.push(sec.ray);
+                s.next.1.push(Pending {
+                    factor: sec.factor,
+                    depth: p.depth + 1,
+                    weight: sec.weight,
+                });
+            }
+        }
+    }
+}
+
+impl Whitted {
+    /// [`Whitted::shade`] for a hit shaded in lane `j` of `lanes` (on
+    /// object `object`): the same terms, rays and counts, from the lanes.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn shade_lane(
+        &self,
+        plan: &Plan,
+        lanes: &Lanes,
+        j: usize,
+        object: u32,
+        p: &Pending,
+        next_base: u32,
+        counters: &mut Counters,
+        s: &mut Scratch,
+        node: &mut Node,
+    ) {
+        let index = s.nodes.len() as u32;
+        node.local = lanes.local(j);
+        let (specular, shininess) = plan.highlight(object);
+        for k in 0..plan.lights() {
+            if let Some(term) = lanes.shadow(k, j) {
+                counters.rays.shadow += 1;
+                s.shadow_rays.push(term.ray);
+                s.shadows.push(Shadow {
+                    node: index,
+                    gain: LightGain {
+                        irradiance: term.irradiance,
+                        diffuse: term.diffuse,
+                        specular,
+                        n_dot_h: term.n_dot_h,
+                        shininess,
+                    },
+                });
+            }
+        }
+        if p.depth < self.max_depth {
+            node.first_child = next_base + s.next.0.len() as u32;
+            let reflected = lanes.reflected(j);
+            if reflected.is_some() {
+                counters.rays.reflection += 1;
+            }
+            let refracted = lanes.refracted(j);
+            if refracted.is_some() {
+                counters.rays.refraction += 1;
+            }
+            for sec in [reflected, refracted].into_iter().flatten() {
                 node.children += 1;
                 s.next.0.push(sec.ray);
                 s.next.1.push(Pending {

@@ -429,14 +429,14 @@ pub(super) struct LightTerm {
 /// [`LightGain::radiance`]).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct LightGain {
-    irradiance: Color,
+    pub irradiance: Color,
     /// `k_d·C·(N·L)`.
-    diffuse: Color,
+    pub diffuse: Color,
     /// `k_s`, `N·H` (clamped to 0) and `n` of the highlight, raised to the
     /// power only for unblocked shadow rays (`powf` is the costly part).
-    specular: f32,
-    n_dot_h: f32,
-    shininess: f32,
+    pub specular: f32,
+    pub n_dot_h: f32,
+    pub shininess: f32,
 }
 
 impl LightGain {

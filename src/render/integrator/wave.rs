@@ -1,0 +1,870 @@
+//! Whitted's shading of a batch of hits in SIMD lanes, for the breadth-first
+//! stream ([`super::stream`]): the surface point, the local terms' shadow
+//! rays and gains for point lights, and the reflected and refracted rays,
+//! computed for many hits at once in structure-of-arrays form, in loops the
+//! compiler vectorises (see [`crate::scene::widest`]).
+//!
+//! Each lane does exactly the arithmetic of the one-hit code, in the same
+//! order: [`crate::scene::Scene::surface`], [`super::whitted::AtHit::new`],
+//! [`super::whitted::local_terms`], `Whitted::secondaries`, with glam's
+//! vector operations spelt out per component (`a·b = (a.x·b.x + a.y·b.y) +
+//! a.z·b.z`, `normalize(v) = v / |v|`, `normalize_or_zero(v) = v·(1/|v|)`,
+//! min and max as SSE's `a < b ? a : b`) and no fused multiply–adds. So a
+//! hit gets the same rays and terms, bit for bit, either way; the stream
+//! tests (`tests/stream.rs`) compare whole renders both ways.
+//!
+//! It takes the hits on spheres, boxes and planes whose material is
+//! diffuse, a mirror or clear glass (no emission, no absorption), textured
+//! by a colour or a checkerboard (solid, or planar on a box), in scenes
+//! whose lights are point lights ([`Plan::new`]). Other hits are shaded
+//! one by one, in their turn.
+
+use crate::geometry::Shape;
+use crate::geometry::batch::{BATCH, Closest, RayBatch};
+use crate::light::Light;
+use crate::math::{Color, MIN_OFFSET, Ray, SHADOW_EPSILON, Vec3, gamma};
+use crate::scene::{CheckerMode, MaterialKind, Object, Scene, Texture, is_even};
+use crate::shading::Fresnel;
+
+/// Most point lights the lanes take.
+pub(super) const MAX_LIGHTS: usize = 4;
+
+/// Lanes computed together (one AVX-512 vector, two AVX2 ones).
+const GROUP: usize = 16;
+
+type Lane = [f32; BATCH];
+type Lane3 = [Lane; 3];
+/// Flags per lane, 0 or 1 (as wide as the `f32` lanes: the compiler
+/// vectorises loops whose arrays have elements of one size).
+type Mask = [u32; BATCH];
+
+/// A shape the lanes take.
+#[derive(Clone, Copy, Debug)]
+enum Form {
+    Sphere { center: [f32; 3], radius: f32 },
+    Cuboid { min: [f32; 3], max: [f32; 3] },
+    Plane { point: [f32; 3], normal: [f32; 3] },
+}
+
+/// A texture the lanes take.
+#[derive(Clone, Copy, Debug)]
+enum Paint {
+    Solid([f32; 3]),
+    /// A checkerboard, planar (on a box's faces) or solid.
+    Checker {
+        even: [f32; 3],
+        odd: [f32; 3],
+        scale: f32,
+        planar: bool,
+    },
+}
+
+const DIFFUSE: u32 = 0;
+const MIRROR: u32 = 1;
+const GLASS: u32 = 2;
+
+/// What the lanes need of an object: its shape, texture and material.
+#[derive(Clone, Copy, Debug)]
+struct Look {
+    form: Form,
+    paint: Paint,
+    ambient: f32,
+    diffuse: f32,
+    specular: f32,
+    shininess: f32,
+    /// [`DIFFUSE`], [`MIRROR`] or [`GLASS`].
+    kind: u32,
+    reflectance: [f32; 3],
+    /// `reflectance.max_element()`, as glam gives it.
+    reflectance_max: f32,
+    ior: f32,
+}
+
+/// How the lanes shade a scene: each object's look (`None`: shaded one by
+/// one) and the point lights, in the order of the delta lights.
+pub(super) struct Plan {
+    looks: Vec<Option<Look>>,
+    lights: Vec<([f32; 3], [f32; 3])>,
+    ambient: [f32; 3],
+}
+
+impl Plan {
+    /// The plan for `scene`, if the lanes can shade any of its hits: its
+    /// delta lights are at most [`MAX_LIGHTS`] point lights.
+    pub(super) fn new(scene: &Scene) -> Option<Plan> {
+        let mut lights = Vec::new();
+        for &i in &scene.emitters.delta_lights {
+            match scene.emitters.lights[i as usize] {
+                Light::Point {
+                    position,
+                    intensity,
+                } => lights.push((position.to_array(), intensity.to_array())),
+                _ => return None,
+            }
+        }
+        if lights.len() > MAX_LIGHTS {
+            return None;
+        }
+        let looks: Vec<Option<Look>> = scene.objects.iter().map(|o| look(scene, o)).collect();
+        looks.iter().any(Option::is_some).then(|| Plan {
+            looks,
+            lights,
+            ambient: scene.ambient.to_array(),
+        })
+    }
+
+    pub(super) fn lights(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// Object `i`'s `(k_s, n)`, if the lanes shade it.
+    pub(super) fn highlight(&self, i: u32) -> (f32, f32) {
+        let look = self.looks[i as usize].as_ref().expect("a shaded object");
+        (look.specular, look.shininess)
+    }
+}
+
+/// The look of an object the lanes can shade.
+fn look(scene: &Scene, object: &Object) -> Option<Look> {
+    let m = &scene.materials[object.material as usize];
+    if m.is_emissive() {
+        return None;
+    }
+    let (kind, reflectance, ior) = match m.kind {
+        MaterialKind::Diffuse => (DIFFUSE, Color::ZERO, 1.0),
+        MaterialKind::Mirror { reflectance } => (MIRROR, reflectance, 1.0),
+        MaterialKind::Dielectric {
+            ior, absorption, ..
+        } if absorption == Color::ZERO => (GLASS, Color::ZERO, ior),
+        _ => return None,
+    };
+    let form = match &object.shape {
+        Shape::Sphere(s) => Form::Sphere {
+            center: s.center.to_array(),
+            radius: s.radius,
+        },
+        Shape::Cuboid(c) => Form::Cuboid {
+            min: c.bounds.min.to_array(),
+            max: c.bounds.max.to_array(),
+        },
+        Shape::Plane(p) => Form::Plane {
+            point: p.point.to_array(),
+            normal: p.normal.to_array(),
+        },
+        _ => return None,
+    };
+    let paint = match m.texture {
+        Texture::Solid(c) => Paint::Solid(c.to_array()),
+        Texture::Checker {
+            even,
+            odd,
+            scale,
+            mode,
+        } => {
+            let planar = mode == CheckerMode::Planar;
+            // Planar on a sphere or a plane: their (u, v) are left to the
+            // one-by-one code.
+            if planar && !matches!(form, Form::Cuboid { .. }) {
+                return None;
+            }
+            Paint::Checker {
+                even: even.to_array(),
+                odd: odd.to_array(),
+                scale,
+                planar,
+            }
+        }
+    };
+    Some(Look {
+        form,
+        paint,
+        ambient: m.ambient,
+        diffuse: m.diffuse,
+        specular: m.specular,
+        shininess: m.shininess,
+        kind,
+        reflectance: reflectance.to_array(),
+        reflectance_max: reflectance.max_element(),
+        ior,
+    })
+}
+
+/// The shading of a batch's hits, lane by lane (meaningful only in lanes
+/// marked `shaded`): the hits, then per light and for the secondary rays
+/// (apart, so that the compiler sees that each phase's output does not
+/// overlap its input).
+pub(super) struct Lanes {
+    hits: HitLanes,
+    lights: [LightLanes; MAX_LIGHTS],
+    secondaries: SecondaryLanes,
+}
+
+/// The hits' surface, material and local term.
+struct HitLanes {
+    /// Whether the lane's hit was shaded here.
+    shaded: Mask,
+    // The surface point, its error bound, the geometric normal, the albedo
+    // and the material's coefficients.
+    p: Lane3,
+    p_err: Lane3,
+    n: Lane3,
+    albedo: Lane3,
+    ambient: Lane,
+    diffuse: Lane,
+    specular: Lane,
+    kind: [u32; BATCH],
+    reflectance: Lane3,
+    reflectance_max: Lane,
+    ior: Lane,
+    /// The unit direction of the ray, whether it met the front, and the
+    /// normal facing it.
+    d: Lane3,
+    front: Mask,
+    n_facing: Lane3,
+    /// The ambient term.
+    local: Lane3,
+}
+
+/// A light's shadow rays: whether the lane has one, the ray, and its gain.
+struct LightLanes {
+    lit: Mask,
+    o: Lane3,
+    d: Lane3,
+    irradiance: Lane3,
+    diffuse: Lane3,
+    n_dot_h: Lane,
+}
+
+/// The reflected and refracted rays: whether traced, the ray, factor and
+/// weight.
+struct SecondaryLanes {
+    reflected: Mask,
+    reflected_o: Lane3,
+    reflected_d: Lane3,
+    reflected_factor: Lane3,
+    reflected_weight: Lane,
+    refracted: Mask,
+    refracted_o: Lane3,
+    refracted_d: Lane3,
+    refracted_factor: Lane,
+    refracted_weight: Lane,
+}
+
+/// A shadow ray and its gain's lane values (see [`Lanes::shadow`]).
+pub(super) struct LaneTerm {
+    pub ray: Ray,
+    pub irradiance: Color,
+    pub diffuse: Color,
+    pub n_dot_h: f32,
+}
+
+/// A secondary ray's lane values (see [`Lanes::reflected`]).
+pub(super) struct LaneSecondary {
+    pub ray: Ray,
+    pub factor: Color,
+    pub weight: f32,
+}
+
+#[inline(always)]
+fn get(v: &Lane3, j: usize) -> [f32; 3] {
+    [v[0][j], v[1][j], v[2][j]]
+}
+
+#[inline(always)]
+fn put(v: &mut Lane3, j: usize, x: [f32; 3]) {
+    [v[0][j], v[1][j], v[2][j]] = x;
+}
+
+/// The point `o + t·d` of lane `j`'s ray at its hit.
+#[inline(always)]
+fn at(rays: &RayBatch, best: &Closest, j: usize) -> [f32; 3] {
+    let t = best.t[j];
+    [
+        rays.o[0][j] + rays.d[0][j] * t,
+        rays.o[1][j] + rays.d[1][j] * t,
+        rays.o[2][j] + rays.d[2][j] * t,
+    ]
+}
+
+/// Lane `j` of `v` becomes `x` where `c`.
+#[inline(always)]
+fn put_if(v: &mut Lane3, j: usize, c: bool, x: [f32; 3]) {
+    let old = get(v, j);
+    put(v, j, pick(c, x, old));
+}
+
+#[inline(always)]
+fn vec(v: &Lane3, j: usize) -> Vec3 {
+    Vec3::from_array(get(v, j))
+}
+
+/// glam's `a.dot(b)`: `(a.x·b.x + a.y·b.y) + a.z·b.z`.
+#[inline(always)]
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2]
+}
+
+#[inline(always)]
+fn neg(a: [f32; 3]) -> [f32; 3] {
+    a.map(|x| -x)
+}
+
+#[inline(always)]
+fn pick(c: bool, a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        if c { a[0] } else { b[0] },
+        if c { a[1] } else { b[1] },
+        if c { a[2] } else { b[2] },
+    ]
+}
+
+/// [`crate::math::offset_ray_origin`], per component.
+#[inline(always)]
+fn offset_origin(p: [f32; 3], p_err: [f32; 3], n: [f32; 3], w: [f32; 3]) -> [f32; 3] {
+    let d = dot(n.map(f32::abs), p_err).max(MIN_OFFSET);
+    let n = pick(dot(w, n) < 0.0, neg(n), n);
+    [
+        nudge_lane(p[0] + n[0] * d, n[0]),
+        nudge_lane(p[1] + n[1] * d, n[1]),
+        nudge_lane(p[2] + n[2] * d, n[2]),
+    ]
+}
+
+const Z: Lane = [0.0; BATCH];
+const Z3: Lane3 = [Z; 3];
+const F: Mask = [0; BATCH];
+
+impl Lanes {
+    pub(super) fn new() -> Box<Lanes> {
+        const LIGHT: LightLanes = LightLanes {
+            lit: F,
+            o: Z3,
+            d: Z3,
+            irradiance: Z3,
+            diffuse: Z3,
+            n_dot_h: Z,
+        };
+        Box::new(Lanes {
+            hits: HitLanes {
+                shaded: F,
+                p: Z3,
+                p_err: Z3,
+                n: Z3,
+                albedo: Z3,
+                ambient: Z,
+                diffuse: Z,
+                specular: Z,
+                kind: [0; BATCH],
+                reflectance: Z3,
+                reflectance_max: Z,
+                ior: Z,
+                d: Z3,
+                front: F,
+                n_facing: Z3,
+                local: Z3,
+            },
+            lights: [LIGHT; MAX_LIGHTS],
+            secondaries: SecondaryLanes {
+                reflected: F,
+                reflected_o: Z3,
+                reflected_d: Z3,
+                reflected_factor: Z3,
+                reflected_weight: Z,
+                refracted: F,
+                refracted_o: Z3,
+                refracted_d: Z3,
+                refracted_factor: Z,
+                refracted_weight: Z,
+            },
+        })
+    }
+
+    /// Whether lane `j`'s hit was shaded here.
+    #[inline]
+    pub(super) fn shaded(&self, j: usize) -> bool {
+        self.hits.shaded[j] != 0
+    }
+
+    /// Shades the hits `best` of the batch `rays` whose objects `plan`
+    /// takes; `weight` is each ray's weight, and secondary rays whose
+    /// weight falls below `min_weight` are not traced.
+    pub(super) fn shade(
+        &mut self,
+        plan: &Plan,
+        rays: &RayBatch,
+        best: &Closest,
+        weight: &Lane,
+        min_weight: f32,
+    ) {
+        crate::scene::widest(
+            #[inline(always)]
+            || self.shade_in(plan, rays, best, weight, min_weight),
+        )
+    }
+
+    #[inline(always)]
+    fn shade_in(
+        &mut self,
+        plan: &Plan,
+        rays: &RayBatch,
+        best: &Closest,
+        weight: &Lane,
+        min_weight: f32,
+    ) {
+        let groups = rays.groups();
+        let hits = &mut self.hits;
+        hits.shaded = F;
+        for (i, look) in plan.looks.iter().enumerate() {
+            let Some(look) = look else { continue };
+            let i = i as u32;
+            if !best.object[..rays.len].contains(&i) {
+                continue;
+            }
+            for j in 0..rays.len {
+                hits.shaded[j] |= u32::from(best.object[j] == i);
+            }
+            hits.surface(look, i, rays, best, groups);
+        }
+        let ambient = plan.ambient;
+        for_lanes(
+            groups,
+            #[inline(always)]
+            |j| hits.at_hit(rays, j, ambient),
+        );
+        let hits = &self.hits;
+        for (&(position, intensity), light) in plan.lights.iter().zip(&mut self.lights) {
+            for_lanes(
+                groups,
+                #[inline(always)]
+                |j| light.light(hits, position, intensity, j),
+            );
+        }
+        let secondaries = &mut self.secondaries;
+        for_lanes(
+            groups,
+            #[inline(always)]
+            |j| secondaries.secondaries(hits, weight[j], min_weight, j),
+        );
+    }
+}
+
+impl HitLanes {
+    /// The surface point, normal, albedo and material of the lanes that hit
+    /// object `i` (of look `look`): [`crate::scene::Scene::surface`] and
+    /// [`crate::scene::Scene::albedo`].
+    #[inline(always)]
+    fn surface(&mut self, look: &Look, i: u32, rays: &RayBatch, best: &Closest, groups: usize) {
+        let at = |j: usize| at(rays, best, j);
+        // Each lane's point, error bound and normal.
+        let mut point = |j: usize, (p, p_err, n): ([f32; 3], [f32; 3], [f32; 3])| {
+            let mine = best.object[j] == i;
+            put_if(&mut self.p, j, mine, p);
+            put_if(&mut self.p_err, j, mine, p_err);
+            put_if(&mut self.n, j, mine, n);
+        };
+        match look.form {
+            Form::Sphere { center, radius } => {
+                let (g5, g2) = (gamma(5), gamma(2));
+                for_lanes(
+                    groups,
+                    #[inline(always)]
+                    |j| {
+                        let raw = at(j);
+                        let offset = [0, 1, 2].map(|c| raw[c] - center[c]);
+                        let len = dot(offset, offset).sqrt();
+                        let n = if len > 0.0 {
+                            offset.map(|x| x / len)
+                        } else {
+                            [0.0, 1.0, 0.0]
+                        };
+                        let local = n.map(|x| x * radius);
+                        let p = [0, 1, 2].map(|c| center[c] + local[c]);
+                        let p_err = [0, 1, 2].map(|c| g5 * local[c].abs() + g2 * p[c].abs());
+                        point(j, (p, p_err, n));
+                    },
+                );
+            }
+            Form::Cuboid { min, max } => {
+                let g5 = gamma(5);
+                for_lanes(
+                    groups,
+                    #[inline(always)]
+                    |j| {
+                        let prim = best.prim[j];
+                        let axis = prim % 3;
+                        let (dx, dy, dz) = (rays.d[0][j], rays.d[1][j], rays.d[2][j]);
+                        let d_axis = if axis == 0 {
+                            dx
+                        } else if axis == 1 {
+                            dy
+                        } else {
+                            dz
+                        };
+                        let outward_positive = if prim >= 3 {
+                            d_axis > 0.0
+                        } else {
+                            d_axis < 0.0
+                        };
+                        let (face, sign) = if outward_positive {
+                            (max, 1.0)
+                        } else {
+                            (min, -1.0)
+                        };
+                        let raw = at(j);
+                        let on = [axis == 0, axis == 1, axis == 2];
+                        let p = [0, 1, 2].map(|c| {
+                            let x = if on[c] { face[c] } else { raw[c] };
+                            // glam's clamp: `max(min)` then `min(max)`, as SSE.
+                            let x = if x > min[c] { x } else { min[c] };
+                            if x < max[c] { x } else { max[c] }
+                        });
+                        let n = on.map(|o| if o { sign } else { 0.0 });
+                        let p_err = p.map(|x| g5 * x.abs());
+                        point(j, (p, p_err, n));
+                    },
+                );
+            }
+            Form::Plane { point: q, normal } => {
+                let g7 = gamma(7);
+                for_lanes(
+                    groups,
+                    #[inline(always)]
+                    |j| {
+                        let raw = at(j);
+                        let h = dot([0, 1, 2].map(|c| raw[c] - q[c]), normal);
+                        let p = [0, 1, 2].map(|c| raw[c] - h * normal[c]);
+                        let p_err = [0, 1, 2].map(|c| g7 * (p[c].abs() + q[c].abs()));
+                        point(j, (p, p_err, normal));
+                    },
+                );
+            }
+        }
+        // The albedo, and the material's coefficients.
+        let paint = look.paint;
+        for_lanes(
+            groups,
+            #[inline(always)]
+            |j| {
+                let mine = best.object[j] == i;
+                let p = get(&self.p, j);
+                let albedo = match paint {
+                    Paint::Solid(c) => c,
+                    Paint::Checker {
+                        even,
+                        odd,
+                        scale,
+                        planar,
+                    } => {
+                        let cells = if planar {
+                            // A box's (u, v) on the face of axis `prim % 3`.
+                            let axis = best.prim[j] % 3;
+                            let u = if axis == 0 { p[2] } else { p[0] };
+                            let v = if axis == 1 { p[2] } else { p[1] };
+                            floor_lane(u / scale) + floor_lane(v / scale)
+                        } else {
+                            (floor_lane(p[0] / scale) + floor_lane(p[1] / scale))
+                                + floor_lane(p[2] / scale)
+                        };
+                        pick(is_even(cells), even, odd)
+                    }
+                };
+                put_if(&mut self.albedo, j, mine, albedo);
+                let set = |lane: &mut Lane, x: f32| lane[j] = if mine { x } else { lane[j] };
+                set(&mut self.ambient, look.ambient);
+                set(&mut self.diffuse, look.diffuse);
+                set(&mut self.specular, look.specular);
+                set(&mut self.reflectance_max, look.reflectance_max);
+                set(&mut self.ior, look.ior);
+                self.kind[j] = if mine { look.kind } else { self.kind[j] };
+                put_if(&mut self.reflectance, j, mine, look.reflectance);
+            },
+        );
+    }
+
+    /// [`super::whitted::AtHit::new`]'s direction, side and facing normal,
+    /// and the ambient term of [`super::whitted::local_terms`].
+    #[inline(always)]
+    fn at_hit(&mut self, rays: &RayBatch, j: usize, ambient: [f32; 3]) {
+        let d = [rays.d[0][j], rays.d[1][j], rays.d[2][j]];
+        let len = dot(d, d).sqrt();
+        let d = d.map(|x| x / len);
+        let n = get(&self.n, j);
+        let front = dot(d, n) < 0.0;
+        let toward = pick(front, n, neg(n));
+        // face_forward(ns, toward), with ns = n for these shapes.
+        let n_facing = pick(dot(n, toward) < 0.0, neg(n), n);
+        put(&mut self.d, j, d);
+        self.front[j] = u32::from(front);
+        put(&mut self.n_facing, j, n_facing);
+        let (a, albedo) = (self.ambient[j], get(&self.albedo, j));
+        put(
+            &mut self.local,
+            j,
+            [0, 1, 2].map(|c| (a * albedo[c]) * ambient[c]),
+        );
+    }
+}
+
+impl LightLanes {
+    /// Point light `k` at `position` of intensity `intensity`: its shadow
+    /// ray and gain, as [`super::whitted::local_terms`] makes them.
+    // `!(x <= 0)` and `!(x >= 1)`: NaN passes, as in the one-hit code's
+    // early returns.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    #[inline(always)]
+    fn light(&mut self, hits: &HitLanes, position: [f32; 3], intensity: [f32; 3], j: usize) {
+        let (p, p_err, n) = (get(&hits.p, j), get(&hits.p_err, j), get(&hits.n, j));
+        let n_facing = get(&hits.n_facing, j);
+        let wo = neg(get(&hits.d, j));
+        let to_light = [0, 1, 2].map(|c| position[c] - p[c]);
+        let dist2 = dot(to_light, to_light);
+        let dist = dist2.sqrt();
+        let wi = to_light.map(|x| x / dist);
+        let o = offset_origin(p, p_err, n, to_light);
+        let cos = dot(n_facing, wi);
+        let (kd, ks) = (hits.diffuse[j], hits.specular[j]);
+        let shading = !(kd == 0.0 && ks == 0.0);
+        self.lit[j] = hits.shaded[j] & u32::from(shading & (dist2 > 0.0) & !(cos <= 0.0));
+        put(&mut self.o, j, o);
+        put(&mut self.d, j, [0, 1, 2].map(|c| position[c] - o[c]));
+        put(&mut self.irradiance, j, intensity.map(|x| x / dist2));
+        let albedo = get(&hits.albedo, j);
+        put(&mut self.diffuse, j, albedo.map(|a| (kd * cos) * a));
+        // normalize_or_zero(wi + wo): `v·(1/|v|)` where that is finite and
+        // positive, else 0.
+        let h = [0, 1, 2].map(|c| wi[c] + wo[c]);
+        let rcp = 1.0 / dot(h, h).sqrt();
+        let h = if rcp.is_finite() && rcp > 0.0 {
+            h.map(|x| x * rcp)
+        } else {
+            [0.0; 3]
+        };
+        self.n_dot_h[j] = if ks > 0.0 {
+            dot(n_facing, h).max(0.0)
+        } else {
+            0.0
+        };
+    }
+}
+
+impl SecondaryLanes {
+    /// `Whitted::secondaries`: a mirror's reflected ray, or a dielectric's
+    /// reflected and refracted rays, each if its weight reaches `min_weight`.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    #[inline(always)]
+    fn secondaries(&mut self, hits: &HitLanes, weight: f32, min_weight: f32, j: usize) {
+        let (p, p_err, n) = (get(&hits.p, j), get(&hits.p_err, j), get(&hits.n, j));
+        let (d, n_facing) = (get(&hits.d, j), get(&hits.n_facing, j));
+        let kind = hits.kind[j];
+        let shaded = hits.shaded[j];
+        // reflect(d, n) = d − (2·(d·n))·n.
+        let d_dot_n = dot(d, n_facing);
+        let k = 2.0 * d_dot_n;
+        let reflected = [0, 1, 2].map(|c| d[c] - k * n_facing[c]);
+        // The dielectric's Fresnel terms and refracted direction.
+        let ior = hits.ior[j];
+        let front = hits.front[j] != 0;
+        let (eta_i, eta_t) = if front { (1.0, ior) } else { (ior, 1.0) };
+        let wo = neg(d);
+        let f = fresnel_lane(dot(wo, n_facing), eta_i, eta_t);
+        let eta = eta_i / eta_t;
+        let cos_i = -d_dot_n;
+        let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
+        let cos_t = (1.0 - sin2_t).sqrt();
+        let a = eta * cos_i - cos_t;
+        let refracted = [0, 1, 2].map(|c| eta * d[c] + a * n_facing[c]);
+        let glass = kind == GLASS;
+        let (factor, w) = if kind == MIRROR {
+            (get(&hits.reflectance, j), weight * hits.reflectance_max[j])
+        } else {
+            ([f.reflectance; 3], weight * f.reflectance)
+        };
+        self.reflected[j] = shaded & u32::from((kind != DIFFUSE) & (w >= min_weight));
+        put(
+            &mut self.reflected_o,
+            j,
+            offset_origin(p, p_err, n, reflected),
+        );
+        put(&mut self.reflected_d, j, reflected);
+        put(&mut self.reflected_factor, j, factor);
+        self.reflected_weight[j] = w;
+        let w = weight * f.transmittance;
+        self.refracted[j] = shaded & u32::from(glass & (w >= min_weight) & !(sin2_t >= 1.0));
+        put(
+            &mut self.refracted_o,
+            j,
+            offset_origin(p, p_err, n, refracted),
+        );
+        put(&mut self.refracted_d, j, refracted);
+        self.refracted_factor[j] = f.transmittance;
+        self.refracted_weight[j] = w;
+    }
+}
+
+impl Lanes {
+    /// Lane `j`'s ambient term.
+    #[inline]
+    pub(super) fn local(&self, j: usize) -> Color {
+        vec(&self.hits.local, j)
+    }
+
+    /// Lane `j`'s shadow ray to light `k`, if it has one.
+    #[inline]
+    pub(super) fn shadow(&self, k: usize, j: usize) -> Option<LaneTerm> {
+        let light = &self.lights[k];
+        (light.lit[j] != 0).then(|| LaneTerm {
+            ray: Ray {
+                o: vec(&light.o, j),
+                d: vec(&light.d, j),
+                t_min: 0.0,
+                t_max: 1.0 - SHADOW_EPSILON,
+            },
+            irradiance: vec(&light.irradiance, j),
+            diffuse: vec(&light.diffuse, j),
+            n_dot_h: light.n_dot_h[j],
+        })
+    }
+
+    /// Lane `j`'s reflected ray, if traced.
+    #[inline]
+    pub(super) fn reflected(&self, j: usize) -> Option<LaneSecondary> {
+        let s = &self.secondaries;
+        (s.reflected[j] != 0).then(|| LaneSecondary {
+            ray: Ray::new(vec(&s.reflected_o, j), vec(&s.reflected_d, j)),
+            factor: vec(&s.reflected_factor, j),
+            weight: s.reflected_weight[j],
+        })
+    }
+
+    /// Lane `j`'s refracted ray, if traced.
+    #[inline]
+    pub(super) fn refracted(&self, j: usize) -> Option<LaneSecondary> {
+        let s = &self.secondaries;
+        (s.refracted[j] != 0).then(|| LaneSecondary {
+            ray: Ray::new(vec(&s.refracted_o, j), vec(&s.refracted_d, j)),
+            factor: Color::splat(s.refracted_factor[j]),
+            weight: s.refracted_weight[j],
+        })
+    }
+}
+
+/// [`crate::math::nudge`], with plain selects (which the compiler
+/// vectorises): one ulp up where `dir > 0`, down where `dir < 0`.
+#[inline(always)]
+fn nudge_lane(x: f32, dir: f32) -> f32 {
+    let bits = x.to_bits();
+    let magnitude = bits & 0x7fff_ffff;
+    let (up, down) = (dir > 0.0, dir < 0.0);
+    let negative = bits >> 31 != 0;
+    let away = (up & !negative) | (down & negative);
+    let towards = (up & negative) | (down & !negative);
+    let stepped = bits
+        .wrapping_add(u32::from(away))
+        .wrapping_sub(u32::from(towards));
+    let from_zero = if down { 0x8000_0001 } else { 1 };
+    let stepped = if (magnitude == 0) & (up | down) {
+        from_zero
+    } else {
+        stepped
+    };
+    let stays = (magnitude > 0x7f80_0000) | ((magnitude == 0x7f80_0000) & away);
+    f32::from_bits(if stays { bits } else { stepped })
+}
+
+/// [`crate::math::floor`], with plain selects.
+#[inline(always)]
+fn floor_lane(x: f32) -> f32 {
+    let t = x as i32 as f32;
+    let down = t - f32::from(u8::from(t > x));
+    let keep = (t == x) | (x.abs() >= 8_388_608.0) | x.is_nan();
+    if keep { x } else { down }
+}
+
+/// [`crate::shading::fresnel_dielectric`]: `(R, T)`, with selects for its
+/// early return.
+#[inline(always)]
+fn fresnel_lane(cos_i: f32, eta_i: f32, eta_t: f32) -> Fresnel {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin_t = eta_i / eta_t * (1.0 - cos_i * cos_i).sqrt();
+    let total = (sin_t >= 1.0) | (cos_i == 0.0);
+    let cos_t = (1.0 - sin_t * sin_t).sqrt();
+    let (ii, tt) = (eta_i * cos_i, eta_t * cos_t);
+    let (it, ti) = (eta_i * cos_t, eta_t * cos_i);
+    let r_s = (ii - tt) / (ii + tt);
+    let r_p = (ti - it) / (ti + it);
+    let t_s = 2.0 * ii / (ii + tt);
+    let t_p = 2.0 * ii / (ti + it);
+    let reflectance = 0.5 * (r_s * r_s + r_p * r_p);
+    let transmittance = tt / ii * 0.5 * (t_s * t_s + t_p * t_p);
+    Fresnel {
+        reflectance: if total { 1.0 } else { reflectance },
+        transmittance: if total { 0.0 } else { transmittance },
+    }
+}
+
+/// Calls `lane(j)` for every lane of the first `groups` groups of
+/// [`GROUP`] lanes (loops of a fixed count, which the compiler vectorises).
+#[inline(always)]
+fn for_lanes(groups: usize, mut lane: impl FnMut(usize)) {
+    for g in 0..BATCH / GROUP {
+        if g >= groups {
+            break;
+        }
+        for j in g * GROUP..(g + 1) * GROUP {
+            lane(j);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{floor, nudge};
+    use crate::shading::fresnel_dielectric;
+    use proptest::prelude::*;
+
+    fn same(a: f32, b: f32) -> bool {
+        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+    }
+
+    #[test]
+    fn lane_helpers_are_the_scalar_functions_bit_for_bit() {
+        let specials = [
+            0.0f32,
+            -0.0,
+            1e-45,
+            -1e-45,
+            0.5,
+            -0.5,
+            1.0,
+            -1.5,
+            8_388_607.5,
+            8_388_608.0,
+            -8_388_609.0,
+            3e9,
+            -3e9,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        for x in specials
+            .into_iter()
+            .chain((0..=u32::MAX).step_by(7919).map(f32::from_bits))
+        {
+            assert!(same(floor_lane(x), floor(x)), "floor {x:e}");
+            for dir in [1.0, -1.0, 0.0, -0.0, f32::NAN] {
+                assert!(same(nudge_lane(x, dir), nudge(x, dir)), "nudge {x:e} {dir}");
+            }
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn fresnel_lane_is_fresnel_dielectric(cos in -0.1f32..1.1, eta in 1.0f32..2.5, inside: bool) {
+            let (eta_i, eta_t) = if inside { (eta, 1.0) } else { (1.0, eta) };
+            let (a, b) = (fresnel_lane(cos, eta_i, eta_t), fresnel_dielectric(cos, eta_i, eta_t));
+            prop_assert!(same(a.reflectance, b.reflectance) && same(a.transmittance, b.transmittance));
+        }
+    }
+}
