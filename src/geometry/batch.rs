@@ -10,7 +10,7 @@
 //! same hit, bit for bit, either way; the tests below check it.
 
 use super::{Cuboid, Plane, Sphere};
-use crate::math::Ray;
+use crate::math::{Ray, Vec3};
 
 /// Rays per batch.
 pub const BATCH: usize = 64;
@@ -48,6 +48,17 @@ impl RayBatch {
     #[inline(always)]
     pub fn groups(&self) -> usize {
         self.len.div_ceil(GROUP)
+    }
+
+    /// Ray `j` of the batch.
+    #[inline]
+    pub fn ray(&self, j: usize) -> Ray {
+        Ray {
+            o: Vec3::new(self.o[0][j], self.o[1][j], self.o[2][j]),
+            d: Vec3::new(self.d[0][j], self.d[1][j], self.d[2][j]),
+            t_min: self.t_min[j],
+            t_max: self.t_max[j],
+        }
     }
 
     /// Replaces the rays by `rays` (at most [`BATCH`]).
@@ -174,6 +185,21 @@ pub fn any_batch(shape: &impl Lanes, rays: &RayBatch, hit: &mut [bool; BATCH]) {
     hit.fill(false);
     for_lanes_met(shape, rays, |j| {
         hit[j] = shape.lane(rays, j, rays.t_max[j]).0
+    });
+}
+
+/// Marks the lanes of the batch whose segment the shape occludes
+/// ([`Shape::occludes`](super::Shape::occludes)) with `index`, where
+/// `blocked` has no mark yet (0).
+#[inline(always)]
+pub fn block_batch(shape: &impl Lanes, rays: &RayBatch, index: u32, blocked: &mut [u32; BATCH]) {
+    for_lanes_met(shape, rays, |j| {
+        let hit = shape.lane(rays, j, rays.t_max[j]).0;
+        blocked[j] = if hit & (blocked[j] == 0) {
+            index
+        } else {
+            blocked[j]
+        };
     });
 }
 

@@ -3,6 +3,7 @@
 //! [`Scene::occluded`] (any hit) and [`Scene::visit_segment`] (the objects
 //! along a shadow ray, for light passing through glass).
 
+mod batch;
 mod camera;
 pub mod desc;
 pub mod files;
@@ -13,6 +14,7 @@ mod mesh_scene;
 pub mod meshio;
 mod texture;
 
+pub(crate) use batch::widest;
 pub use camera::Camera;
 pub use desc::SceneDesc;
 pub use light::Light;
@@ -26,9 +28,7 @@ pub use texture::{CheckerMode, Texture, is_even};
 
 use crate::accel::{Bvh, PACKET, Tlas, TraversalCounters};
 pub use crate::geometry::TraceCounters;
-use crate::geometry::batch::{
-    BATCH, Closest, NO_HIT, RayBatch, any_batch, closest_batch, sphere_glass_lanes,
-};
+use crate::geometry::batch::{Closest, NO_HIT};
 use crate::geometry::{Shape, ShapeHit, SurfacePoint};
 use crate::light::LightSet;
 use crate::math::{Aabb, Color, Ray, Vec3};
@@ -751,146 +751,9 @@ impl Scene {
         counters.intersection_tests += (self.objects.len() * open) as u64;
     }
 
-    /// Whether [`Scene::intersect_batch`] and [`Scene::occludes_batch`] can
-    /// answer for this scene: few objects (tested in a plain loop), all of
-    /// them spheres, planes or boxes.
-    pub fn batchable(&self) -> bool {
-        self.linear
-            && self.objects.iter().all(|o| {
-                matches!(
-                    o.shape,
-                    Shape::Sphere(_) | Shape::Plane(_) | Shape::Cuboid(_)
-                )
-            })
-    }
-
-    /// [`Scene::intersect`] for a batch of rays at once, each object tested
-    /// against all of them (SIMD lanes); the same hits, bit for bit, and the
-    /// same counts. Only for [`Scene::batchable`] scenes.
-    pub fn intersect_batch(&self, rays: &RayBatch, counters: &mut TraceCounters) -> Closest {
-        debug_assert!(self.batchable());
-        counters.intersection_tests += (self.objects.len() * rays.len) as u64;
-        widest(
-            #[inline(always)]
-            || {
-                let mut best = Closest::start(rays);
-                for (i, o) in self.objects.iter().enumerate() {
-                    match &o.shape {
-                        Shape::Sphere(s) => closest_batch(s, rays, &mut best, i as u32),
-                        Shape::Plane(s) => closest_batch(s, rays, &mut best, i as u32),
-                        Shape::Cuboid(s) => closest_batch(s, rays, &mut best, i as u32),
-                        _ => unreachable!("intersect_batch on a scene that is not batchable"),
-                    }
-                }
-                best
-            },
-        )
-    }
-
-    /// [`Shape::occludes`] of object `i` (a sphere, plane or box) for a
-    /// batch of rays: `hit[j]` for ray `j`. Counts nothing (the caller
-    /// knows which tests it needed).
-    pub fn occludes_batch(&self, i: u32, rays: &RayBatch, hit: &mut [bool; BATCH]) {
-        // The answers are made in a local array: written through a
-        // captured reference, the compiler could not tell them apart from
-        // the rays and would not vectorise.
-        *hit = widest(
-            #[inline(always)]
-            || {
-                let mut out = [false; BATCH];
-                match &self.objects[i as usize].shape {
-                    Shape::Sphere(s) => any_batch(s, rays, &mut out),
-                    Shape::Plane(s) => any_batch(s, rays, &mut out),
-                    Shape::Cuboid(s) => any_batch(s, rays, &mut out),
-                    _ => unreachable!("occludes_batch on a shape without a batch test"),
-                }
-                out
-            },
-        );
-    }
-
-    /// What object `i`, a sphere of glass of index of refraction `ior`,
-    /// lets through of each shadow ray of the batch where it does not
-    /// absorb: the product of the Fresnel transmittances of the segment's
-    /// crossings of its surface (1 where there is none), as
-    /// [`Shape::crossings`] gives them. `false` (and nothing written) for
-    /// other shapes.
-    pub fn sphere_glass_batch(
-        &self,
-        i: u32,
-        ior: f32,
-        rays: &RayBatch,
-        passed: &mut [f32; BATCH],
-    ) -> bool {
-        let Shape::Sphere(s) = &self.objects[i as usize].shape else {
-            return false;
-        };
-        *passed = widest(
-            #[inline(always)]
-            || {
-                let mut out = [1.0; BATCH];
-                sphere_glass_lanes(s, ior, rays, &mut out);
-                out
-            },
-        );
-        true
-    }
-
     /// Whether object `i`'s material stops shadow rays (all but dielectrics).
     #[inline(always)]
     pub fn is_opaque(&self, i: u32) -> bool {
         self.opaque[i as usize]
-    }
-}
-
-/// `f()`, compiled for the widest vector unit the CPU has (AVX-512F,
-/// AVX2 or the baseline, chosen at run time): for the batch tests, whose
-/// loops the compiler vectorises. `f` must be inlined (`#[inline(always)]`
-/// on the closure) for its code to be compiled for the wider unit.
-#[inline(always)]
-pub(crate) fn widest<R>(f: impl FnOnce() -> R) -> R {
-    #[cfg(target_arch = "x86_64")]
-    {
-        #[target_feature(enable = "avx512f")]
-        fn avx512<R>(f: impl FnOnce() -> R) -> R {
-            f()
-        }
-        #[target_feature(enable = "avx2")]
-        fn avx2<R>(f: impl FnOnce() -> R) -> R {
-            f()
-        }
-        if simd_level() >= 2 {
-            // SAFETY: the CPU has AVX-512F (checked just above).
-            return unsafe { avx512(f) };
-        }
-        if simd_level() == 1 {
-            // SAFETY: the CPU has AVX2 (checked just above).
-            return unsafe { avx2(f) };
-        }
-    }
-    f()
-}
-
-/// The widest vector unit the batch tests may use: 2 for AVX-512, 1 for
-/// AVX2, 0 for the baseline (checked once, then cached).
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn simd_level() -> u8 {
-    use std::sync::atomic::{AtomicU8, Ordering};
-    // 0: not checked yet; else 1 + the level.
-    static LEVEL: AtomicU8 = AtomicU8::new(0);
-    match LEVEL.load(Ordering::Relaxed) {
-        0 => {
-            let level = if std::arch::is_x86_feature_detected!("avx512f") {
-                2
-            } else if std::arch::is_x86_feature_detected!("avx2") {
-                1
-            } else {
-                0
-            };
-            LEVEL.store(1 + level, Ordering::Relaxed);
-            level
-        }
-        l => l - 1,
     }
 }

@@ -3,6 +3,7 @@
 //! with Veach's multiple importance sampling). [`IntegratorKind`] names
 //! them; [`AnyIntegrator::new`] makes the one the settings name.
 
+mod columns;
 mod path;
 mod raycast;
 mod stream;

@@ -138,7 +138,7 @@ impl Raycast {
             let shadow_rays = &shadow_rays[..n];
             if batched {
                 batch.fill(shadow_rays);
-                visibility = transmittance_batch(scene, &batch, shadow_rays, &mut counters.trace);
+                visibility = transmittance_batch(scene, &batch, &mut counters.trace);
             } else {
                 transmittance_packet(
                     scene,

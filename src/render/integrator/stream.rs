@@ -1,11 +1,15 @@
 //! Whitted's recursive ray tracing for many camera rays at once, breadth
 //! first: the rays of one depth (a "wave") are intersected together, a
 //! batch at a time ([`Scene::intersect_batch`]: each object against many
-//! rays, in SIMD lanes), their hits shaded one by one, and the shadow rays
-//! of the whole wave tested together too. The ray trees are kept, and each
-//! ray's radiance is put together from its children's, deepest first, with
-//! the very operations of [`Whitted::trace_ray`] in the same order. So a
-//! pixel gets the same value bit for bit, and the render the same counts.
+//! rays, in SIMD lanes), and so are their shadow rays. The hits a batch's
+//! lanes can shade ([`super::wave`]) are shaded there, their shadow rays
+//! tested light by light straight from the lanes, and their secondary rays
+//! written into the next wave's columns ([`super::columns`]); the others
+//! are shaded one by one, their shadow rays tested with the whole wave's.
+//! The ray trees are kept, and each ray's radiance is put together from its
+//! children's, deepest first, with the very operations of
+//! [`Whitted::trace_ray`] in the same order. So a pixel gets the same value
+//! bit for bit, and the render the same counts.
 //!
 //! It applies where nothing differs between the two orders: scenes of a
 //! few spheres, planes and boxes (see [`Scene::batchable`]), no area lights
@@ -17,8 +21,9 @@
 //! depth first, as one by one (the same image, but where two triangles
 //! are hit at exactly the same `t`, which may name the other one).
 
+use super::columns::{Nodes, Shadows, Wave};
 use super::wave::{Lanes, Plan};
-use super::whitted::{AtHit, LightGain, local_terms, samples_area_lights, through_glass};
+use super::whitted::{AtHit, local_terms, samples_area_lights, through_glass};
 use super::{Counters, MAX_RAY_TREE, NoRecord, Tracer, Whitted, from_first_hits};
 use crate::geometry::batch::{BATCH, RayBatch};
 use crate::math::{Color, Ray};
@@ -26,47 +31,18 @@ use crate::render::sampler::PixelSampler;
 use crate::scene::{Hit, Scene, TraceCounters};
 use std::cell::RefCell;
 
-/// A ray of the trees, in the order traced (so children come after their
-/// parents): what its hit gives before its children's radiance (`local`,
-/// with each unblocked shadow ray's term added in turn), its children
-/// (`children` of them from `first_child`), the absorption on its way (1
-/// where none: multiplying by 1 is exact), and the factor its parent puts on
-/// its radiance.
-#[derive(Clone, Copy, Debug)]
-struct Node {
-    local: Color,
-    absorption: Color,
-    factor: Color,
-    first_child: u32,
-    children: u32,
-}
-
-/// A ray to trace in the next wave, with its factor, depth and weight
-/// (its ray is at the same place in the wave's rays).
-#[derive(Clone, Copy, Debug)]
-struct Pending {
-    factor: Color,
-    depth: u32,
-    weight: f32,
-}
-
-/// A shadow ray's node and what it adds there if unblocked (its ray is at
-/// the same place in the wave's shadow rays).
-struct Shadow {
-    node: u32,
-    gain: LightGain,
-}
-
-/// Buffers kept per thread between calls.
+/// Buffers kept per thread between calls: the ray trees' nodes and their
+/// radiance (by component), this wave's and the next's rays, the wave's
+/// shadow rays, a batch, and the lanes.
 #[derive(Default)]
 struct Scratch {
-    nodes: Vec<Node>,
-    radiance: Vec<Color>,
-    wave: (Vec<Ray>, Vec<Pending>),
-    next: (Vec<Ray>, Vec<Pending>),
-    shadows: Vec<Shadow>,
-    shadow_rays: Vec<Ray>,
+    nodes: Nodes,
+    radiance: [Vec<f32>; 3],
+    wave: Wave,
+    next: Wave,
+    shadows: Shadows,
     batch: Option<Box<RayBatch>>,
+    shadow_batch: Option<Box<RayBatch>>,
     lanes: Option<Box<Lanes>>,
 }
 
@@ -127,203 +103,156 @@ impl Whitted {
     ) {
         assert_eq!(rays.len(), out.len());
         s.nodes.clear();
-        s.wave.0.clear();
-        s.wave.1.clear();
-        s.wave.0.extend_from_slice(rays);
-        s.wave.1.extend(rays.iter().map(|_| Pending {
-            factor: Color::ONE,
-            depth: 0,
-            weight: 1.0,
-        }));
+        s.wave.clear();
+        s.wave.room(rays.len());
+        for (i, ray) in rays.iter().enumerate() {
+            s.wave.rays.set_ray(i, ray);
+            s.wave.factor.iter_mut().for_each(|c| c[i] = 1.0);
+            s.wave.weight[i] = 1.0;
+        }
+        s.wave.rays.len = rays.len();
         let mut batch = s.batch.take().unwrap_or_else(|| RayBatch::new(&[]));
+        let mut shadow_batch = s.shadow_batch.take().unwrap_or_else(|| RayBatch::new(&[]));
         let plan = Plan::new(scene);
         let mut lanes = s.lanes.take().unwrap_or_else(Lanes::new);
         let mut weights = [0.0f32; BATCH];
-        while !s.wave.0.is_empty() {
-            s.next.0.clear();
-            s.next.1.clear();
+        let mut lane = [0u8; BATCH];
+        let mut depth = 0;
+        while s.wave.len() > 0 {
+            s.next.clear();
             s.shadows.clear();
-            s.shadow_rays.clear();
             let wave = std::mem::take(&mut s.wave);
-            // The nodes of the next wave follow this wave's.
-            let next_base = (s.nodes.len() + wave.0.len()) as u32;
-            for (rays, pending) in wave.0.chunks(BATCH).zip(wave.1.chunks(BATCH)) {
-                batch.fill(rays);
+            let n = wave.len();
+            // The wave's nodes, then the next wave's.
+            let base = s.nodes.len();
+            let next_base = base + n;
+            s.nodes.grow_to(next_base);
+            for (node, ray) in s.nodes.factor.iter_mut().zip(&wave.factor) {
+                node[base..].copy_from_slice(&ray[..n]);
+            }
+            for start in (0..n).step_by(BATCH) {
+                let m = BATCH.min(n - start);
+                let first = base + start;
+                wave.rays.to_batch(start, m, &mut batch);
                 let best = scene.intersect_batch(&batch, &mut counters.trace);
-                if let Some(plan) = &plan {
-                    for (w, p) in weights.iter_mut().zip(pending) {
-                        *w = p.weight;
-                    }
+                let lanes = plan.as_ref().map(|plan| {
+                    weights[..m].copy_from_slice(&wave.weight[start..start + m]);
                     lanes.shade(plan, &batch, &best, &weights, self.min_weight);
-                }
-                for (j, (ray, p)) in rays.iter().zip(pending).enumerate() {
-                    let mut node = Node {
-                        local: Color::ZERO,
-                        absorption: Color::ONE,
-                        factor: p.factor,
-                        first_child: 0,
-                        children: 0,
-                    };
-                    match best.hit(j) {
-                        None => node.local = Tracer::escaped(self, scene, ray),
-                        Some(hit) => match &plan {
-                            Some(plan) if lanes.shaded(j) => self.shade_lane(
-                                plan, &lanes, j, hit.object, p, next_base, counters, s, &mut node,
-                            ),
-                            _ => self.shade(scene, ray, p, &hit, next_base, counters, s, &mut node),
-                        },
+                    lanes.write_locals(m, first, &mut s.nodes);
+                    // Each light's shadow rays, in place, and their terms,
+                    // in the order of the lights.
+                    for k in 0..plan.lights() {
+                        lanes.shadow_batch(k, m, &mut shadow_batch, &mut lane);
+                        let lit = shadow_batch.len;
+                        counters.rays.shadow += lit as u64;
+                        let visibility =
+                            transmittance_batch(scene, &shadow_batch, &mut counters.trace);
+                        let (lane, visibility) = (&lane[..lit], &visibility[..lit]);
+                        lanes.add_light(k, lane, visibility, first, &mut s.nodes);
                     }
-                    s.nodes.push(node);
+                    if depth < self.max_depth {
+                        let (r, t) =
+                            lanes.write_secondaries(m, first, next_base, &mut s.nodes, &mut s.next);
+                        counters.rays.reflection += r;
+                        counters.rays.refraction += t;
+                    }
+                    &*lanes
+                });
+                for j in 0..m {
+                    if lanes.is_some_and(|l| l.shaded(j)) {
+                        continue;
+                    }
+                    let ray = batch.ray(j);
+                    match best.hit(j) {
+                        None => s
+                            .nodes
+                            .set_local(first + j, Tracer::escaped(self, scene, &ray)),
+                        Some(hit) => {
+                            let weight = wave.weight[start + j];
+                            let at = (first + j, next_base, depth);
+                            self.shade(scene, &ray, weight, &hit, at, counters, s);
+                        }
+                    }
                 }
             }
             // The wave's shadow rays, then their terms, in the order the
             // lights were met.
-            for (shadows, rays) in s.shadows.chunks(BATCH).zip(s.shadow_rays.chunks(BATCH)) {
-                batch.fill(rays);
-                let visibility = transmittance_batch(scene, &batch, rays, &mut counters.trace);
-                for (shadow, &v) in shadows.iter().zip(&visibility[..rays.len()]) {
+            for start in (0..s.shadows.len()).step_by(BATCH) {
+                let m = BATCH.min(s.shadows.len() - start);
+                s.shadows.rays.to_batch(start, m, &mut batch);
+                let visibility = transmittance_batch(scene, &batch, &mut counters.trace);
+                for (j, &v) in visibility[..m].iter().enumerate() {
                     if v != Color::ZERO {
-                        s.nodes[shadow.node as usize].local += shadow.gain.radiance(v);
+                        let node = s.shadows.node[start + j] as usize;
+                        s.nodes
+                            .add_local(node, s.shadows.gain(start + j).radiance(v));
                     }
                 }
             }
             s.wave = wave;
             std::mem::swap(&mut s.wave, &mut s.next);
+            depth += 1;
         }
         s.batch = Some(batch);
+        s.shadow_batch = Some(shadow_batch);
         s.lanes = Some(lanes);
-        // Children come after their parents: put the radiance together from
-        // the last ray to the first.
-        s.radiance.clear();
-        s.radiance.resize(s.nodes.len(), Color::ZERO);
-        for (i, node) in s.nodes.iter().enumerate().rev() {
-            let mut l = node.local;
-            let first = node.first_child as usize;
-            for c in first..first + node.children as usize {
-                l += s.nodes[c].factor * s.radiance[c];
-            }
-            s.radiance[i] = l * node.absorption;
+        s.nodes.radiance(&mut s.radiance);
+        let r = &s.radiance;
+        for (i, out) in out.iter_mut().enumerate() {
+            *out = Color::new(r[0][i], r[1][i], r[2][i]);
         }
-        out.copy_from_slice(&s.radiance[..rays.len()]);
     }
 
-    /// A hit of the wave, whose node will be the next in `s.nodes`: its
+    /// A hit of the wave (of weight `weight`), at node `at.0` (the next
+    /// wave's nodes start at `at.1`, and the wave is at depth `at.2`): its
     /// local terms (shadow rays queued), its absorption, and its secondary
-    /// rays queued for the next wave (whose nodes start at `next_base`).
+    /// rays queued for the next wave.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn shade(
         &self,
         scene: &Scene,
         ray: &Ray,
-        p: &Pending,
+        weight: f32,
         hit: &Hit,
-        next_base: u32,
+        (index, next_base, depth): (usize, usize, u32),
         counters: &mut Counters,
         s: &mut Scratch,
-        node: &mut Node,
     ) {
         let at = AtHit::new(scene, ray, hit);
-        let index = s.nodes.len() as u32;
-        let (shadows, shadow_rays) = (&mut s.shadows, &mut s.shadow_rays);
-        node.local = local_terms(scene, &at.si, at.wo, at.n_facing, None, |_, term| {
+        let shadows = &mut s.shadows;
+        let local = local_terms(scene, &at.si, at.wo, at.n_facing, None, |_, term| {
             counters.rays.shadow += 1;
-            shadow_rays.push(term.ray);
-            shadows.push(Shadow {
-                node: index,
-                gain: term.gain,
-            });
+            shadows.push(&term.ray, index as u32, &term.gain);
         });
+        s.nodes.set_local(index, local);
         if let Some(a) = at.absorption(hit.t * ray.d.length()) {
-            node.absorption = a;
+            s.nodes.set_absorption(index, a);
         }
-        if p.depth < self.max_depth {
-            node.first_child = next_base + s.next.0.len() as u32;
+        if depth < self.max_depth {
+            s.nodes.first_child[index] = (next_base + s.next.len()) as u32;
             // By reference: moving the array into an iterator copies it.
-            let secondaries = self.secondaries(scene, &at, p.weight, &mut super::NoRecord);
+            let secondaries = self.secondaries(scene, &at, weight, &mut super::NoRecord);
             for sec in secondaries.iter().flatten() {
                 sec.count(counters);
-                node.children += 1;
-                s.next.0.push(sec.ray);
-                s.next.1.push(Pending {
-                    factor: sec.factor,
-                    depth: p.depth + 1,
-                    weight: sec.weight,
-                });
+                s.nodes.children[index] += 1;
+                s.next.push(&sec.ray, sec.factor, sec.weight);
             }
         }
     }
 }
 
-impl Whitted {
-    /// [`Whitted::shade`] for a hit shaded in lane `j` of `lanes` (on
-    /// object `object`): the same terms, rays and counts, from the lanes.
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn shade_lane(
-        &self,
-        plan: &Plan,
-        lanes: &Lanes,
-        j: usize,
-        object: u32,
-        p: &Pending,
-        next_base: u32,
-        counters: &mut Counters,
-        s: &mut Scratch,
-        node: &mut Node,
-    ) {
-        let index = s.nodes.len() as u32;
-        node.local = lanes.local(j);
-        let (specular, shininess) = plan.highlight(object);
-        for k in 0..plan.lights() {
-            if let Some(term) = lanes.shadow(k, j) {
-                counters.rays.shadow += 1;
-                s.shadow_rays.push(term.ray);
-                s.shadows.push(Shadow {
-                    node: index,
-                    gain: LightGain {
-                        irradiance: term.irradiance,
-                        diffuse: term.diffuse,
-                        specular,
-                        n_dot_h: term.n_dot_h,
-                        shininess,
-                    },
-                });
-            }
-        }
-        if p.depth < self.max_depth {
-            node.first_child = next_base + s.next.0.len() as u32;
-            let reflected = lanes.reflected(j);
-            if reflected.is_some() {
-                counters.rays.reflection += 1;
-            }
-            let refracted = lanes.refracted(j);
-            if refracted.is_some() {
-                counters.rays.refraction += 1;
-            }
-            for sec in [reflected, refracted].into_iter().flatten() {
-                node.children += 1;
-                s.next.0.push(sec.ray);
-                s.next.1.push(Pending {
-                    factor: sec.factor,
-                    depth: p.depth + 1,
-                    weight: sec.weight,
-                });
-            }
-        }
-    }
-}
-
-/// [`super::transmittance`] for a batch of shadow rays (`rays`, also as
-/// `batch`): opaque objects and clear glass spheres are tested against all
+/// [`super::transmittance`] for a batch of shadow rays: opaque objects and clear glass spheres are tested against all
 /// rays at once, other glass ray by ray; the same values and counts.
 pub(super) fn transmittance_batch(
     scene: &Scene,
     batch: &RayBatch,
-    rays: &[Ray],
     counters: &mut TraceCounters,
 ) -> [Color; BATCH] {
-    let n = rays.len();
+    if let Some(tr) = scene.transmittance_lanes(batch, counters) {
+        return tr.map(Color::splat);
+    }
+    let n = batch.len;
     let mut tr = [Color::ONE; BATCH];
     let mut blocked = [false; BATCH];
     let mut hit = [false; BATCH];
@@ -360,7 +289,7 @@ pub(super) fn transmittance_batch(
             }
             for j in 0..n {
                 if !blocked[j] && (absorbs || hit[j]) {
-                    through_glass(scene, i, &rays[j], counters, &mut tr[j]);
+                    through_glass(scene, i, &batch.ray(j), counters, &mut tr[j]);
                 }
             }
         }

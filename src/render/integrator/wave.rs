@@ -19,10 +19,12 @@
 //! whose lights are point lights ([`Plan::new`]). Other hits are shaded
 //! one by one, in their turn.
 
+use super::columns::{Nodes, Wave};
+use super::whitted::LightGain;
 use crate::geometry::Shape;
 use crate::geometry::batch::{BATCH, Closest, RayBatch};
 use crate::light::Light;
-use crate::math::{Color, MIN_OFFSET, Ray, SHADOW_EPSILON, Vec3, gamma};
+use crate::math::{Color, MIN_OFFSET, SHADOW_EPSILON, gamma};
 use crate::scene::{CheckerMode, MaterialKind, Object, Scene, Texture, is_even};
 use crate::shading::Fresnel;
 
@@ -116,12 +118,6 @@ impl Plan {
     pub(super) fn lights(&self) -> usize {
         self.lights.len()
     }
-
-    /// Object `i`'s `(k_s, n)`, if the lanes shade it.
-    pub(super) fn highlight(&self, i: u32) -> (f32, f32) {
-        let look = self.looks[i as usize].as_ref().expect("a shaded object");
-        (look.specular, look.shininess)
-    }
 }
 
 /// The look of an object the lanes can shade.
@@ -212,6 +208,7 @@ struct HitLanes {
     ambient: Lane,
     diffuse: Lane,
     specular: Lane,
+    shininess: Lane,
     kind: [u32; BATCH],
     reflectance: Lane3,
     reflectance_max: Lane,
@@ -250,21 +247,6 @@ struct SecondaryLanes {
     refracted_weight: Lane,
 }
 
-/// A shadow ray and its gain's lane values (see [`Lanes::shadow`]).
-pub(super) struct LaneTerm {
-    pub ray: Ray,
-    pub irradiance: Color,
-    pub diffuse: Color,
-    pub n_dot_h: f32,
-}
-
-/// A secondary ray's lane values (see [`Lanes::reflected`]).
-pub(super) struct LaneSecondary {
-    pub ray: Ray,
-    pub factor: Color,
-    pub weight: f32,
-}
-
 #[inline(always)]
 fn get(v: &Lane3, j: usize) -> [f32; 3] {
     [v[0][j], v[1][j], v[2][j]]
@@ -291,11 +273,6 @@ fn at(rays: &RayBatch, best: &Closest, j: usize) -> [f32; 3] {
 fn put_if(v: &mut Lane3, j: usize, c: bool, x: [f32; 3]) {
     let old = get(v, j);
     put(v, j, pick(c, x, old));
-}
-
-#[inline(always)]
-fn vec(v: &Lane3, j: usize) -> Vec3 {
-    Vec3::from_array(get(v, j))
 }
 
 /// glam's `a.dot(b)`: `(a.x·b.x + a.y·b.y) + a.z·b.z`.
@@ -354,6 +331,7 @@ impl Lanes {
                 ambient: Z,
                 diffuse: Z,
                 specular: Z,
+                shininess: Z,
                 kind: [0; BATCH],
                 reflectance: Z3,
                 reflectance_max: Z,
@@ -573,6 +551,7 @@ impl HitLanes {
                 set(&mut self.ambient, look.ambient);
                 set(&mut self.diffuse, look.diffuse);
                 set(&mut self.specular, look.specular);
+                set(&mut self.shininess, look.shininess);
                 set(&mut self.reflectance_max, look.reflectance_max);
                 set(&mut self.ior, look.ior);
                 self.kind[j] = if mine { look.kind } else { self.kind[j] };
@@ -702,49 +681,105 @@ impl SecondaryLanes {
 }
 
 impl Lanes {
-    /// Lane `j`'s ambient term.
-    #[inline]
-    pub(super) fn local(&self, j: usize) -> Color {
-        vec(&self.hits.local, j)
+    /// The ambient terms of lanes `..n` into nodes `first..`, where shaded.
+    pub(super) fn write_locals(&self, n: usize, first: usize, nodes: &mut Nodes) {
+        let hits = &self.hits;
+        for (local, lane) in nodes.local.iter_mut().zip(&hits.local) {
+            for (j, l) in local[first..first + n].iter_mut().enumerate() {
+                *l = if hits.shaded[j] != 0 { lane[j] } else { *l };
+            }
+        }
     }
 
-    /// Lane `j`'s shadow ray to light `k`, if it has one.
-    #[inline]
-    pub(super) fn shadow(&self, k: usize, j: usize) -> Option<LaneTerm> {
+    /// Light `k`'s shadow rays of lanes `..n` (those that have one),
+    /// gathered into `batch` in lane order; `lane[q]` is ray `q`'s lane.
+    pub(super) fn shadow_batch(
+        &self,
+        k: usize,
+        n: usize,
+        batch: &mut RayBatch,
+        lane: &mut [u8; BATCH],
+    ) {
         let light = &self.lights[k];
-        (light.lit[j] != 0).then(|| LaneTerm {
-            ray: Ray {
-                o: vec(&light.o, j),
-                d: vec(&light.d, j),
-                t_min: 0.0,
-                t_max: 1.0 - SHADOW_EPSILON,
-            },
-            irradiance: vec(&light.irradiance, j),
-            diffuse: vec(&light.diffuse, j),
-            n_dot_h: light.n_dot_h[j],
-        })
+        let mut at = 0;
+        for j in 0..n {
+            lane[at] = j as u8;
+            at += light.lit[j] as usize;
+        }
+        for (q, &j) in lane[..at].iter().enumerate() {
+            let j = j as usize;
+            for c in 0..3 {
+                batch.o[c][q] = light.o[c][j];
+                batch.d[c][q] = light.d[c][j];
+            }
+        }
+        batch.t_min[..at].fill(0.0);
+        batch.t_max[..at].fill(1.0 - SHADOW_EPSILON);
+        batch.len = at;
     }
 
-    /// Lane `j`'s reflected ray, if traced.
-    #[inline]
-    pub(super) fn reflected(&self, j: usize) -> Option<LaneSecondary> {
-        let s = &self.secondaries;
-        (s.reflected[j] != 0).then(|| LaneSecondary {
-            ray: Ray::new(vec(&s.reflected_o, j), vec(&s.reflected_d, j)),
-            factor: vec(&s.reflected_factor, j),
-            weight: s.reflected_weight[j],
-        })
+    /// Adds light `k`'s terms to the nodes (lane `j`'s is `first + j`)
+    /// of the shadow rays of [`Lanes::shadow_batch`], through their
+    /// transmittance `visibility`: `V·E·(k_d·C·(N·L) + k_s·(N·H)^n)`
+    /// ([`LightGain::radiance`]).
+    pub(super) fn add_light(
+        &self,
+        k: usize,
+        lane: &[u8],
+        visibility: &[Color],
+        first: usize,
+        nodes: &mut Nodes,
+    ) {
+        let (light, hits) = (&self.lights[k], &self.hits);
+        for (&j, &v) in lane.iter().zip(visibility) {
+            if v != Color::ZERO {
+                let j = j as usize;
+                let gain = LightGain {
+                    irradiance: Color::from_array(get(&light.irradiance, j)),
+                    diffuse: Color::from_array(get(&light.diffuse, j)),
+                    specular: hits.specular[j],
+                    n_dot_h: light.n_dot_h[j],
+                    shininess: hits.shininess[j],
+                };
+                nodes.add_local(first + j, gain.radiance(v));
+            }
+        }
     }
 
-    /// Lane `j`'s refracted ray, if traced.
-    #[inline]
-    pub(super) fn refracted(&self, j: usize) -> Option<LaneSecondary> {
+    /// The reflected and refracted rays of lanes `..n` (nodes `first..`),
+    /// put after `next`'s in lane order (each node's reflected ray first),
+    /// and the nodes' children (the rays of `next` are nodes from
+    /// `next_base`); returns how many were reflected and refracted.
+    pub(super) fn write_secondaries(
+        &self,
+        n: usize,
+        first: usize,
+        next_base: usize,
+        nodes: &mut Nodes,
+        next: &mut Wave,
+    ) -> (u64, u64) {
         let s = &self.secondaries;
-        (s.refracted[j] != 0).then(|| LaneSecondary {
-            ray: Ray::new(vec(&s.refracted_o, j), vec(&s.refracted_d, j)),
-            factor: Color::splat(s.refracted_factor[j]),
-            weight: s.refracted_weight[j],
-        })
+        next.room(2 * n);
+        let mut at = next.len();
+        let (mut reflected, mut refracted) = (0, 0);
+        for j in 0..n {
+            let (r, t) = (s.reflected[j], s.refracted[j]);
+            nodes.first_child[first + j] = (next_base + at) as u32;
+            nodes.children[first + j] = r + t;
+            if r + t == 0 {
+                continue;
+            }
+            let ray = (get(&s.reflected_o, j), get(&s.reflected_d, j));
+            next.set(at, ray, get(&s.reflected_factor, j), s.reflected_weight[j]);
+            at += r as usize;
+            let ray = (get(&s.refracted_o, j), get(&s.refracted_d, j));
+            next.set(at, ray, [s.refracted_factor[j]; 3], s.refracted_weight[j]);
+            at += t as usize;
+            reflected += u64::from(r);
+            refracted += u64::from(t);
+        }
+        next.rays.len = at;
+        (reflected, refracted)
     }
 }
 
