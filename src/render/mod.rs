@@ -634,9 +634,6 @@ fn render_tile<I: Integrator>(
     // sample per pixel, else a pixel's samples, up to `RAYS` at a time.
     const RAYS: usize = 64;
     const { assert!(TILE_SIZE as usize <= RAYS) };
-    let mut points = [(0.0f32, 0.0f32); RAYS];
-    let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); RAYS];
-    let mut row_samples = [PixelSamples::new(0, 0); TILE_SIZE as usize];
     let single = samples.count == 1;
     // One sample per pixel written straight to a film that keeps no sums.
     let plain = single && accumulate.is_none() && tile.sums.is_empty();
@@ -661,7 +658,6 @@ fn render_tile<I: Integrator>(
     // `RAYS` at a time; the first refusal stops the asking. Output
     // variables need each pixel's own counts: not then.
     let mut streaming = !missed && tile.aovs.is_empty() && integrator.streams(scene);
-    let mut streamed = [Color::ZERO; RAYS];
     let tile_streamed = if streaming && samples.count <= STREAM_SPP {
         let out = stream_tile(scene, integrator, tile, settings, &mut counters);
         streaming = out.is_some();
@@ -688,6 +684,11 @@ fn render_tile<I: Integrator>(
         counters.rays.camera += out.len() as u64;
         return tile_counters(&counters, bad_samples, nan_pixels);
     }
+    // Made only here: a streamed tile needs none of them.
+    let mut points = [(0.0f32, 0.0f32); RAYS];
+    let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); RAYS];
+    let mut row_samples = [PixelSamples::new(0, 0); TILE_SIZE as usize];
+    let mut streamed = [Color::ZERO; RAYS];
     for (dy, row) in tile.rows.iter_mut().enumerate() {
         let y = tile.y0 + dy as u32;
         if single {

@@ -18,12 +18,14 @@ impl Scene {
     /// else the product, in the order of the objects, of what each glass
     /// sphere lets through ([`Scene::sphere_glass_batch`]). Counts the
     /// tests as the one-ray code does (up to the first object that blocks
-    /// the ray, else all). `None` (nothing counted) for other scenes.
+    /// the ray, else all). Into `tr`; `false` (nothing written or counted)
+    /// for other scenes.
     pub fn transmittance_lanes(
         &self,
         rays: &RayBatch,
         counters: &mut TraceCounters,
-    ) -> Option<[f32; BATCH]> {
+        tr: &mut [f32; BATCH],
+    ) -> bool {
         let mut glass = [0.0f32; 8];
         for (i, o) in self.objects.iter().enumerate() {
             if !self.is_opaque(i as u32) {
@@ -34,7 +36,7 @@ impl Scene {
                     {
                         glass[i] = ior
                     }
-                    _ => return None,
+                    _ => return false,
                 }
             }
         }
@@ -70,14 +72,13 @@ impl Scene {
             },
         );
         let mut tests = 0;
-        let mut tr = [0.0f32; BATCH];
         for j in 0..rays.len {
             let open = blocked[j] == 0;
             tests += u64::from(if open { objects } else { blocked[j] });
             tr[j] = if open { passed[j] } else { 0.0 };
         }
         counters.intersection_tests += tests;
-        Some(tr)
+        true
     }
 
     /// Whether [`Scene::intersect_batch`] and [`Scene::occludes_batch`] can

@@ -181,13 +181,16 @@ impl Nodes {
         }
         for i in (0..n).rev() {
             let mut l = [self.local[0][i], self.local[1][i], self.local[2][i]];
-            let first = self.first_child[i] as usize;
-            let children = first..first + self.children[i] as usize;
-            // Each component on its own: the same sums, in children's order.
-            for (k, l) in l.iter_mut().enumerate() {
-                let factors = &self.factor[k][children.clone()];
-                for (f, r) in factors.iter().zip(&radiance[k][children.clone()]) {
-                    *l += f * r;
+            if self.children[i] > 0 {
+                let first = self.first_child[i] as usize;
+                let children = first..first + self.children[i] as usize;
+                // Each component on its own: the same sums, in children's
+                // order.
+                for (k, l) in l.iter_mut().enumerate() {
+                    let factors = &self.factor[k][children.clone()];
+                    for (f, r) in factors.iter().zip(&radiance[k][children.clone()]) {
+                        *l += f * r;
+                    }
                 }
             }
             for (k, l) in l.into_iter().enumerate() {

@@ -138,7 +138,7 @@ impl Raycast {
             let shadow_rays = &shadow_rays[..n];
             if batched {
                 batch.fill(shadow_rays);
-                visibility = transmittance_batch(scene, &batch, &mut counters.trace);
+                transmittance_batch(scene, &batch, &mut counters.trace, &mut visibility);
             } else {
                 transmittance_packet(
                     scene,

@@ -117,6 +117,8 @@ impl Whitted {
         let mut lanes = s.lanes.take().unwrap_or_else(Lanes::new);
         let mut weights = [0.0f32; BATCH];
         let mut lane = [0u8; BATCH];
+        let mut passed = [0.0f32; BATCH];
+        let mut visibility = [Color::ZERO; BATCH];
         let mut depth = 0;
         while s.wave.len() > 0 {
             s.next.clear();
@@ -137,7 +139,8 @@ impl Whitted {
                 let best = scene.intersect_batch(&batch, &mut counters.trace);
                 let lanes = plan.as_ref().map(|plan| {
                     weights[..m].copy_from_slice(&wave.weight[start..start + m]);
-                    lanes.shade(plan, &batch, &best, &weights, self.min_weight);
+                    let spawn = depth < self.max_depth;
+                    lanes.shade(plan, &batch, &best, &weights, (self.min_weight, spawn));
                     lanes.write_locals(m, first, &mut s.nodes);
                     // Each light's shadow rays, in place, and their terms,
                     // in the order of the lights.
@@ -145,17 +148,21 @@ impl Whitted {
                         lanes.shadow_batch(k, m, &mut shadow_batch, &mut lane);
                         let lit = shadow_batch.len;
                         counters.rays.shadow += lit as u64;
-                        let visibility =
-                            transmittance_batch(scene, &shadow_batch, &mut counters.trace);
-                        let (lane, visibility) = (&lane[..lit], &visibility[..lit]);
-                        lanes.add_light(k, lane, visibility, first, &mut s.nodes);
+                        let (trace, lane) = (&mut counters.trace, &lane[..lit]);
+                        let nodes = &mut s.nodes;
+                        if scene.transmittance_lanes(&shadow_batch, trace, &mut passed) {
+                            let visibility = |q: usize| Color::splat(passed[q]);
+                            lanes.add_light((k, m), lane, visibility, first, nodes);
+                        } else {
+                            transmittance_batch(scene, &shadow_batch, trace, &mut visibility);
+                            let visibility = |q: usize| visibility[q];
+                            lanes.add_light((k, m), lane, visibility, first, nodes);
+                        }
                     }
-                    if depth < self.max_depth {
-                        let (r, t) =
-                            lanes.write_secondaries(m, first, next_base, &mut s.nodes, &mut s.next);
-                        counters.rays.reflection += r;
-                        counters.rays.refraction += t;
-                    }
+                    let (r, t) =
+                        lanes.write_secondaries(m, first, next_base, &mut s.nodes, &mut s.next);
+                    counters.rays.reflection += r;
+                    counters.rays.refraction += t;
                     &*lanes
                 });
                 for j in 0..m {
@@ -180,7 +187,7 @@ impl Whitted {
             for start in (0..s.shadows.len()).step_by(BATCH) {
                 let m = BATCH.min(s.shadows.len() - start);
                 s.shadows.rays.to_batch(start, m, &mut batch);
-                let visibility = transmittance_batch(scene, &batch, &mut counters.trace);
+                transmittance_batch(scene, &batch, &mut counters.trace, &mut visibility);
                 for (j, &v) in visibility[..m].iter().enumerate() {
                     if v != Color::ZERO {
                         let node = s.shadows.node[start + j] as usize;
@@ -242,21 +249,25 @@ impl Whitted {
     }
 }
 
-/// [`super::transmittance`] for a batch of shadow rays: opaque objects and clear glass spheres are tested against all
+/// [`super::transmittance`] for a batch of shadow rays, into `tr`: opaque objects and clear glass spheres are tested against all
 /// rays at once, other glass ray by ray; the same values and counts.
 pub(super) fn transmittance_batch(
     scene: &Scene,
     batch: &RayBatch,
     counters: &mut TraceCounters,
-) -> [Color; BATCH] {
-    if let Some(tr) = scene.transmittance_lanes(batch, counters) {
-        return tr.map(Color::splat);
-    }
+    tr: &mut [Color; BATCH],
+) {
     let n = batch.len;
-    let mut tr = [Color::ONE; BATCH];
+    let mut passed = [1.0f32; BATCH];
+    if scene.transmittance_lanes(batch, counters, &mut passed) {
+        for (tr, &p) in tr[..n].iter_mut().zip(&passed) {
+            *tr = Color::splat(p);
+        }
+        return;
+    }
+    tr[..n].fill(Color::ONE);
     let mut blocked = [false; BATCH];
     let mut hit = [false; BATCH];
-    let mut passed = [1.0f32; BATCH];
     let objects = scene.objects.len() as u64;
     for i in 0..scene.objects.len() as u32 {
         if scene.is_opaque(i) {
@@ -301,5 +312,4 @@ pub(super) fn transmittance_batch(
             counters.intersection_tests += objects;
         }
     }
-    tr
 }

@@ -20,7 +20,7 @@
 //! one by one, in their turn.
 
 use super::columns::{Nodes, Wave};
-use super::whitted::LightGain;
+use super::whitted::highlight;
 use crate::geometry::Shape;
 use crate::geometry::batch::{BATCH, Closest, RayBatch};
 use crate::light::Light;
@@ -193,6 +193,9 @@ pub(super) struct Lanes {
     hits: HitLanes,
     lights: [LightLanes; MAX_LIGHTS],
     secondaries: SecondaryLanes,
+    /// Whether any lane may spawn secondary rays (else `secondaries` is
+    /// not computed).
+    spawns: bool,
 }
 
 /// The hits' surface, material and local term.
@@ -342,6 +345,7 @@ impl Lanes {
                 local: Z3,
             },
             lights: [LIGHT; MAX_LIGHTS],
+            spawns: false,
             secondaries: SecondaryLanes {
                 reflected: F,
                 reflected_o: Z3,
@@ -365,18 +369,19 @@ impl Lanes {
 
     /// Shades the hits `best` of the batch `rays` whose objects `plan`
     /// takes; `weight` is each ray's weight, and secondary rays whose
-    /// weight falls below `min_weight` are not traced.
+    /// weight falls below `min_weight` are not traced, nor any unless
+    /// `spawn`.
     pub(super) fn shade(
         &mut self,
         plan: &Plan,
         rays: &RayBatch,
         best: &Closest,
         weight: &Lane,
-        min_weight: f32,
+        (min_weight, spawn): (f32, bool),
     ) {
         crate::scene::widest(
             #[inline(always)]
-            || self.shade_in(plan, rays, best, weight, min_weight),
+            || self.shade_in(plan, rays, best, weight, min_weight, spawn),
         )
     }
 
@@ -388,6 +393,7 @@ impl Lanes {
         best: &Closest,
         weight: &Lane,
         min_weight: f32,
+        spawn: bool,
     ) {
         let groups = rays.groups();
         let hits = &mut self.hits;
@@ -417,6 +423,15 @@ impl Lanes {
                 |j| light.light(hits, position, intensity, j),
             );
         }
+        // Only mirrors and glass spawn rays.
+        let mut specular = 0;
+        for j in 0..BATCH {
+            specular |= hits.shaded[j] & u32::from(hits.kind[j] != DIFFUSE);
+        }
+        self.spawns = spawn && specular != 0;
+        if !self.spawns {
+            return;
+        }
         let secondaries = &mut self.secondaries;
         for_lanes(
             groups,
@@ -433,6 +448,11 @@ impl HitLanes {
     #[inline(always)]
     fn surface(&mut self, look: &Look, i: u32, rays: &RayBatch, best: &Closest, groups: usize) {
         let at = |j: usize| at(rays, best, j);
+        // The groups of lanes with a hit on the object.
+        let mut mine = [false; BATCH / GROUP];
+        for (g, mine) in mine.iter_mut().enumerate().take(groups) {
+            *mine = best.object[g * GROUP..(g + 1) * GROUP].contains(&i);
+        }
         // Each lane's point, error bound and normal.
         let mut point = |j: usize, (p, p_err, n): ([f32; 3], [f32; 3], [f32; 3])| {
             let mine = best.object[j] == i;
@@ -443,8 +463,8 @@ impl HitLanes {
         match look.form {
             Form::Sphere { center, radius } => {
                 let (g5, g2) = (gamma(5), gamma(2));
-                for_lanes(
-                    groups,
+                for_lanes_in(
+                    &mine,
                     #[inline(always)]
                     |j| {
                         let raw = at(j);
@@ -464,8 +484,8 @@ impl HitLanes {
             }
             Form::Cuboid { min, max } => {
                 let g5 = gamma(5);
-                for_lanes(
-                    groups,
+                for_lanes_in(
+                    &mine,
                     #[inline(always)]
                     |j| {
                         let prim = best.prim[j];
@@ -504,8 +524,8 @@ impl HitLanes {
             }
             Form::Plane { point: q, normal } => {
                 let g7 = gamma(7);
-                for_lanes(
-                    groups,
+                for_lanes_in(
+                    &mine,
                     #[inline(always)]
                     |j| {
                         let raw = at(j);
@@ -519,8 +539,8 @@ impl HitLanes {
         }
         // The albedo, and the material's coefficients.
         let paint = look.paint;
-        for_lanes(
-            groups,
+        for_lanes_in(
+            &mine,
             #[inline(always)]
             |j| {
                 let mine = best.object[j] == i;
@@ -719,29 +739,46 @@ impl Lanes {
     }
 
     /// Adds light `k`'s terms to the nodes (lane `j`'s is `first + j`)
-    /// of the shadow rays of [`Lanes::shadow_batch`], through their
-    /// transmittance `visibility`: `V·E·(k_d·C·(N·L) + k_s·(N·H)^n)`
-    /// ([`LightGain::radiance`]).
+    /// of lanes `..n`, through the transmittance `visibility(q)` of each
+    /// shadow ray `q` of [`Lanes::shadow_batch`] (of lane `lane[q]`): `V·E·
+    /// (k_d·C·(N·L) + k_s·(N·H)^n)`, as [`super::whitted::LightGain::radiance`]
+    /// makes it,
+    /// where `V` is not 0.
     pub(super) fn add_light(
         &self,
-        k: usize,
+        (k, n): (usize, usize),
         lane: &[u8],
-        visibility: &[Color],
+        visibility: impl Fn(usize) -> Color,
         first: usize,
         nodes: &mut Nodes,
     ) {
         let (light, hits) = (&self.lights[k], &self.hits);
-        for (&j, &v) in lane.iter().zip(visibility) {
-            if v != Color::ZERO {
-                let j = j as usize;
-                let gain = LightGain {
-                    irradiance: Color::from_array(get(&light.irradiance, j)),
-                    diffuse: Color::from_array(get(&light.diffuse, j)),
-                    specular: hits.specular[j],
-                    n_dot_h: light.n_dot_h[j],
-                    shininess: hits.shininess[j],
+        // The transmittance by lane (0 without a shadow ray), and the
+        // reflected part, with its highlight where there is one (`powf`
+        // one by one).
+        let mut v = Z3;
+        let mut open = F;
+        let mut reflected = light.diffuse;
+        for (q, &j) in lane.iter().enumerate() {
+            let (j, vis) = (j as usize, visibility(q));
+            put(&mut v, j, vis.to_array());
+            open[j] = u32::from(vis != Color::ZERO);
+            let ks = hits.specular[j];
+            if ks > 0.0 && vis != Color::ZERO {
+                let h = ks * highlight(light.n_dot_h[j], hits.shininess[j]);
+                let r = get(&reflected, j).map(|r| r + h);
+                put(&mut reflected, j, r);
+            }
+        }
+        for c in 0..3 {
+            let (v, e, r) = (&v[c], &light.irradiance[c], &reflected[c]);
+            let local = &mut nodes.local[c][first..first + n];
+            for (j, l) in local.iter_mut().enumerate() {
+                *l = if open[j] != 0 {
+                    *l + (v[j] * e[j]) * r[j]
+                } else {
+                    *l
                 };
-                nodes.add_local(first + j, gain.radiance(v));
             }
         }
     }
@@ -758,17 +795,21 @@ impl Lanes {
         nodes: &mut Nodes,
         next: &mut Wave,
     ) -> (u64, u64) {
+        if !self.spawns {
+            return (0, 0);
+        }
         let s = &self.secondaries;
         next.room(2 * n);
         let mut at = next.len();
         let (mut reflected, mut refracted) = (0, 0);
         for j in 0..n {
             let (r, t) = (s.reflected[j], s.refracted[j]);
-            nodes.first_child[first + j] = (next_base + at) as u32;
-            nodes.children[first + j] = r + t;
+            // The nodes were made without children.
             if r + t == 0 {
                 continue;
             }
+            nodes.first_child[first + j] = (next_base + at) as u32;
+            nodes.children[first + j] = r + t;
             let ray = (get(&s.reflected_o, j), get(&s.reflected_d, j));
             next.set(at, ray, get(&s.reflected_factor, j), s.reflected_weight[j]);
             at += r as usize;
@@ -847,6 +888,18 @@ fn for_lanes(groups: usize, mut lane: impl FnMut(usize)) {
         }
         for j in g * GROUP..(g + 1) * GROUP {
             lane(j);
+        }
+    }
+}
+
+/// [`for_lanes`] for the groups marked in `which`.
+#[inline(always)]
+fn for_lanes_in(which: &[bool; BATCH / GROUP], mut lane: impl FnMut(usize)) {
+    for (g, &w) in which.iter().enumerate() {
+        if w {
+            for j in g * GROUP..(g + 1) * GROUP {
+                lane(j);
+            }
         }
     }
 }

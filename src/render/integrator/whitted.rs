@@ -553,7 +553,7 @@ pub(super) fn local_terms(
 /// 0.0861`. Where `n` times that bound is below −160, `c^n < 2^−160`, far
 /// below half the smallest subnormal (2^−150), and `powf` returns +0.
 #[inline]
-fn highlight(c: f32, n: f32) -> f32 {
+pub(super) fn highlight(c: f32, n: f32) -> f32 {
     let log2_bound =
         (c.to_bits() as i32 - 1.0f32.to_bits() as i32) as f32 * (1.0 / 8_388_608.0) + 0.09;
     if n * log2_bound < -160.0 {
