@@ -200,16 +200,13 @@ impl Nodes {
     }
 }
 
-/// Shadow rays, each with its node and what it adds there if unblocked.
+/// Shadow rays, each with its node and what it adds there if unblocked
+/// (the one-by-one path's: the lanes test theirs in place).
 #[derive(Default)]
 pub(super) struct Shadows {
     pub rays: Rays,
     pub node: Vec<u32>,
-    pub irradiance: [Vec<f32>; 3],
-    pub diffuse: [Vec<f32>; 3],
-    pub specular: Vec<f32>,
-    pub n_dot_h: Vec<f32>,
-    pub shininess: Vec<f32>,
+    pub gain: Vec<LightGain>,
 }
 
 impl Shadows {
@@ -219,46 +216,15 @@ impl Shadows {
 
     pub fn clear(&mut self) {
         self.rays.len = 0;
+        self.node.clear();
+        self.gain.clear();
     }
 
-    /// See [`Rays::room`].
-    pub fn room(&mut self, extra: usize) {
-        self.rays.room(extra);
-        let n = self.rays.t_min.len();
-        self.node.resize(n, 0);
-        for c in self.irradiance.iter_mut().chain(&mut self.diffuse) {
-            c.resize(n, 0.0);
-        }
-        self.specular.resize(n, 0.0);
-        self.n_dot_h.resize(n, 0.0);
-        self.shininess.resize(n, 0.0);
-    }
-
-    pub fn push(&mut self, ray: &Ray, node: u32, gain: &LightGain) {
-        self.room(1);
-        let i = self.rays.len;
-        self.rays.set_ray(i, ray);
-        self.node[i] = node;
-        for c in 0..3 {
-            self.irradiance[c][i] = gain.irradiance[c];
-            self.diffuse[c][i] = gain.diffuse[c];
-        }
-        self.specular[i] = gain.specular;
-        self.n_dot_h[i] = gain.n_dot_h;
-        self.shininess[i] = gain.shininess;
+    pub fn push(&mut self, ray: &Ray, node: u32, gain: LightGain) {
+        self.rays.room(1);
+        self.rays.set_ray(self.rays.len, ray);
         self.rays.len += 1;
-    }
-
-    /// Shadow ray `i`'s gain.
-    #[inline]
-    pub fn gain(&self, i: usize) -> LightGain {
-        let at = |c: &[Vec<f32>; 3]| Color::new(c[0][i], c[1][i], c[2][i]);
-        LightGain {
-            irradiance: at(&self.irradiance),
-            diffuse: at(&self.diffuse),
-            specular: self.specular[i],
-            n_dot_h: self.n_dot_h[i],
-            shininess: self.shininess[i],
-        }
+        self.node.push(node);
+        self.gain.push(gain);
     }
 }

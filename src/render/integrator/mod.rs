@@ -4,6 +4,7 @@
 //! them; [`AnyIntegrator::new`] makes the one the settings name.
 
 mod columns;
+mod lane;
 mod path;
 mod raycast;
 mod stream;

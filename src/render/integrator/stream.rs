@@ -192,7 +192,7 @@ impl Whitted {
                     if v != Color::ZERO {
                         let node = s.shadows.node[start + j] as usize;
                         s.nodes
-                            .add_local(node, s.shadows.gain(start + j).radiance(v));
+                            .add_local(node, s.shadows.gain[start + j].radiance(v));
                     }
                 }
             }
@@ -230,7 +230,7 @@ impl Whitted {
         let shadows = &mut s.shadows;
         let local = local_terms(scene, &at.si, at.wo, at.n_facing, None, |_, term| {
             counters.rays.shadow += 1;
-            shadows.push(&term.ray, index as u32, &term.gain);
+            shadows.push(&term.ray, index as u32, term.gain);
         });
         s.nodes.set_local(index, local);
         if let Some(a) = at.absorption(hit.t * ray.d.length()) {

@@ -20,25 +20,19 @@
 //! one by one, in their turn.
 
 use super::columns::{Nodes, Wave};
+use super::lane::{
+    F, GROUP, Lane, Lane3, Mask, Z, Z3, at, dot, floor_lane, for_lanes, for_lanes_in, fresnel_lane,
+    get, neg, offset_origin, pick, put, put_if,
+};
 use super::whitted::highlight;
 use crate::geometry::Shape;
 use crate::geometry::batch::{BATCH, Closest, RayBatch};
 use crate::light::Light;
-use crate::math::{Color, MIN_OFFSET, SHADOW_EPSILON, gamma};
+use crate::math::{Color, SHADOW_EPSILON, gamma};
 use crate::scene::{CheckerMode, MaterialKind, Object, Scene, Texture, is_even};
-use crate::shading::Fresnel;
 
 /// Most point lights the lanes take.
 pub(super) const MAX_LIGHTS: usize = 4;
-
-/// Lanes computed together (one AVX-512 vector, two AVX2 ones).
-const GROUP: usize = 16;
-
-type Lane = [f32; BATCH];
-type Lane3 = [Lane; 3];
-/// Flags per lane, 0 or 1 (as wide as the `f32` lanes: the compiler
-/// vectorises loops whose arrays have elements of one size).
-type Mask = [u32; BATCH];
 
 /// A shape the lanes take.
 #[derive(Clone, Copy, Debug)]
@@ -249,70 +243,6 @@ struct SecondaryLanes {
     refracted_factor: Lane,
     refracted_weight: Lane,
 }
-
-#[inline(always)]
-fn get(v: &Lane3, j: usize) -> [f32; 3] {
-    [v[0][j], v[1][j], v[2][j]]
-}
-
-#[inline(always)]
-fn put(v: &mut Lane3, j: usize, x: [f32; 3]) {
-    [v[0][j], v[1][j], v[2][j]] = x;
-}
-
-/// The point `o + t·d` of lane `j`'s ray at its hit.
-#[inline(always)]
-fn at(rays: &RayBatch, best: &Closest, j: usize) -> [f32; 3] {
-    let t = best.t[j];
-    [
-        rays.o[0][j] + rays.d[0][j] * t,
-        rays.o[1][j] + rays.d[1][j] * t,
-        rays.o[2][j] + rays.d[2][j] * t,
-    ]
-}
-
-/// Lane `j` of `v` becomes `x` where `c`.
-#[inline(always)]
-fn put_if(v: &mut Lane3, j: usize, c: bool, x: [f32; 3]) {
-    let old = get(v, j);
-    put(v, j, pick(c, x, old));
-}
-
-/// glam's `a.dot(b)`: `(a.x·b.x + a.y·b.y) + a.z·b.z`.
-#[inline(always)]
-fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
-    (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2]
-}
-
-#[inline(always)]
-fn neg(a: [f32; 3]) -> [f32; 3] {
-    a.map(|x| -x)
-}
-
-#[inline(always)]
-fn pick(c: bool, a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [
-        if c { a[0] } else { b[0] },
-        if c { a[1] } else { b[1] },
-        if c { a[2] } else { b[2] },
-    ]
-}
-
-/// [`crate::math::offset_ray_origin`], per component.
-#[inline(always)]
-fn offset_origin(p: [f32; 3], p_err: [f32; 3], n: [f32; 3], w: [f32; 3]) -> [f32; 3] {
-    let d = dot(n.map(f32::abs), p_err).max(MIN_OFFSET);
-    let n = pick(dot(w, n) < 0.0, neg(n), n);
-    [
-        nudge_lane(p[0] + n[0] * d, n[0]),
-        nudge_lane(p[1] + n[1] * d, n[1]),
-        nudge_lane(p[2] + n[2] * d, n[2]),
-    ]
-}
-
-const Z: Lane = [0.0; BATCH];
-const Z3: Lane3 = [Z; 3];
-const F: Mask = [0; BATCH];
 
 impl Lanes {
     pub(super) fn new() -> Box<Lanes> {
@@ -821,138 +751,5 @@ impl Lanes {
         }
         next.rays.len = at;
         (reflected, refracted)
-    }
-}
-
-/// [`crate::math::nudge`], with plain selects (which the compiler
-/// vectorises): one ulp up where `dir > 0`, down where `dir < 0`.
-#[inline(always)]
-fn nudge_lane(x: f32, dir: f32) -> f32 {
-    let bits = x.to_bits();
-    let magnitude = bits & 0x7fff_ffff;
-    let (up, down) = (dir > 0.0, dir < 0.0);
-    let negative = bits >> 31 != 0;
-    let away = (up & !negative) | (down & negative);
-    let towards = (up & negative) | (down & !negative);
-    let stepped = bits
-        .wrapping_add(u32::from(away))
-        .wrapping_sub(u32::from(towards));
-    let from_zero = if down { 0x8000_0001 } else { 1 };
-    let stepped = if (magnitude == 0) & (up | down) {
-        from_zero
-    } else {
-        stepped
-    };
-    let stays = (magnitude > 0x7f80_0000) | ((magnitude == 0x7f80_0000) & away);
-    f32::from_bits(if stays { bits } else { stepped })
-}
-
-/// [`crate::math::floor`], with plain selects.
-#[inline(always)]
-fn floor_lane(x: f32) -> f32 {
-    let t = x as i32 as f32;
-    let down = t - f32::from(u8::from(t > x));
-    let keep = (t == x) | (x.abs() >= 8_388_608.0) | x.is_nan();
-    if keep { x } else { down }
-}
-
-/// [`crate::shading::fresnel_dielectric`]: `(R, T)`, with selects for its
-/// early return.
-#[inline(always)]
-fn fresnel_lane(cos_i: f32, eta_i: f32, eta_t: f32) -> Fresnel {
-    let cos_i = cos_i.clamp(0.0, 1.0);
-    let sin_t = eta_i / eta_t * (1.0 - cos_i * cos_i).sqrt();
-    let total = (sin_t >= 1.0) | (cos_i == 0.0);
-    let cos_t = (1.0 - sin_t * sin_t).sqrt();
-    let (ii, tt) = (eta_i * cos_i, eta_t * cos_t);
-    let (it, ti) = (eta_i * cos_t, eta_t * cos_i);
-    let r_s = (ii - tt) / (ii + tt);
-    let r_p = (ti - it) / (ti + it);
-    let t_s = 2.0 * ii / (ii + tt);
-    let t_p = 2.0 * ii / (ti + it);
-    let reflectance = 0.5 * (r_s * r_s + r_p * r_p);
-    let transmittance = tt / ii * 0.5 * (t_s * t_s + t_p * t_p);
-    Fresnel {
-        reflectance: if total { 1.0 } else { reflectance },
-        transmittance: if total { 0.0 } else { transmittance },
-    }
-}
-
-/// Calls `lane(j)` for every lane of the first `groups` groups of
-/// [`GROUP`] lanes (loops of a fixed count, which the compiler vectorises).
-#[inline(always)]
-fn for_lanes(groups: usize, mut lane: impl FnMut(usize)) {
-    for g in 0..BATCH / GROUP {
-        if g >= groups {
-            break;
-        }
-        for j in g * GROUP..(g + 1) * GROUP {
-            lane(j);
-        }
-    }
-}
-
-/// [`for_lanes`] for the groups marked in `which`.
-#[inline(always)]
-fn for_lanes_in(which: &[bool; BATCH / GROUP], mut lane: impl FnMut(usize)) {
-    for (g, &w) in which.iter().enumerate() {
-        if w {
-            for j in g * GROUP..(g + 1) * GROUP {
-                lane(j);
-            }
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::math::{floor, nudge};
-    use crate::shading::fresnel_dielectric;
-    use proptest::prelude::*;
-
-    fn same(a: f32, b: f32) -> bool {
-        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
-    }
-
-    #[test]
-    fn lane_helpers_are_the_scalar_functions_bit_for_bit() {
-        let specials = [
-            0.0f32,
-            -0.0,
-            1e-45,
-            -1e-45,
-            0.5,
-            -0.5,
-            1.0,
-            -1.5,
-            8_388_607.5,
-            8_388_608.0,
-            -8_388_609.0,
-            3e9,
-            -3e9,
-            f32::MAX,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NAN,
-        ];
-        for x in specials
-            .into_iter()
-            .chain((0..=u32::MAX).step_by(7919).map(f32::from_bits))
-        {
-            assert!(same(floor_lane(x), floor(x)), "floor {x:e}");
-            for dir in [1.0, -1.0, 0.0, -0.0, f32::NAN] {
-                assert!(same(nudge_lane(x, dir), nudge(x, dir)), "nudge {x:e} {dir}");
-            }
-        }
-    }
-
-    proptest! {
-        #[test]
-        fn fresnel_lane_is_fresnel_dielectric(cos in -0.1f32..1.1, eta in 1.0f32..2.5, inside: bool) {
-            let (eta_i, eta_t) = if inside { (eta, 1.0) } else { (1.0, eta) };
-            let (a, b) = (fresnel_lane(cos, eta_i, eta_t), fresnel_dielectric(cos, eta_i, eta_t));
-            prop_assert!(same(a.reflectance, b.reflectance) && same(a.transmittance, b.transmittance));
-        }
     }
 }
