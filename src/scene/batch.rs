@@ -3,7 +3,7 @@
 //! rays in SIMD lanes, compiled for the widest vector unit the CPU has
 //! ([`widest`]).
 
-use super::Scene;
+use super::{Object, Scene};
 use crate::geometry::Shape;
 use crate::geometry::TraceCounters;
 use crate::geometry::batch::{
@@ -26,19 +26,14 @@ impl Scene {
         counters: &mut TraceCounters,
         tr: &mut [f32; BATCH],
     ) -> bool {
-        let mut glass = [0.0f32; 8];
-        for (i, o) in self.objects.iter().enumerate() {
-            if !self.is_opaque(i as u32) {
-                let m = &self.materials[o.material as usize];
-                match (m.glass(), &o.shape) {
-                    (Some((ior, absorption)), Shape::Sphere(_))
-                        if absorption == Color::ZERO && i < glass.len() =>
-                    {
-                        glass[i] = ior
-                    }
-                    _ => return false,
-                }
-            }
+        // What a dielectric object lets through: a clear glass sphere's ior.
+        let ior = |o: &Object| match (self.materials[o.material as usize].glass(), &o.shape) {
+            (Some((ior, absorption)), Shape::Sphere(_)) if absorption == Color::ZERO => Some(ior),
+            _ => None,
+        };
+        let clear = |(i, o): (usize, &Object)| self.is_opaque(i as u32) || ior(o).is_some();
+        if !self.objects.iter().enumerate().all(clear) {
+            return false;
         }
         let objects = self.objects.len() as u32;
         let (blocked, passed) = widest(
@@ -52,7 +47,8 @@ impl Scene {
                     let mark = i as u32 + 1;
                     match &o.shape {
                         Shape::Sphere(s) if !self.is_opaque(i as u32) => {
-                            sphere_glass_lanes(s, glass[i], rays, &mut through);
+                            let ior = ior(o).expect("a clear glass sphere");
+                            sphere_glass_lanes(s, ior, rays, &mut through);
                             for j in 0..BATCH {
                                 let open = blocked[j] == 0;
                                 passed[j] = if open {
