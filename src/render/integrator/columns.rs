@@ -201,7 +201,7 @@ impl Nodes {
 }
 
 /// Shadow rays, each with its node and what it adds there if unblocked
-/// (the one-by-one path's: the lanes test theirs in place).
+/// (the one-by-one path's: the lanes test theirs batch by batch).
 #[derive(Default)]
 pub(super) struct Shadows {
     pub rays: Rays,

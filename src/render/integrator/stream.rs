@@ -142,8 +142,8 @@ impl Whitted {
                     let spawn = depth < self.max_depth;
                     lanes.shade(plan, &batch, &best, &weights, (self.min_weight, spawn));
                     lanes.write_locals(m, first, &mut s.nodes);
-                    // Each light's shadow rays, in place, and their terms,
-                    // in the order of the lights.
+                    // Each light's shadow rays, gathered and tested, then
+                    // their terms, in the order of the lights.
                     for k in 0..plan.lights() {
                         lanes.shadow_batch(k, m, &mut shadow_batch, &mut lane);
                         let lit = shadow_batch.len;
