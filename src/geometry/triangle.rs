@@ -156,6 +156,13 @@ pub struct LaneHits {
 /// lane outside by more than the upper bounds is outside with them. Only
 /// where some lane that could hit falls between the two are the exact
 /// allowances computed, so the result is the same, bit for bit.
+///
+/// The work is staged so that a block of triangles is dropped as early as
+/// its lanes allow: `t` first (a lane whose plane is not met within
+/// `[t_min, t_max)` is out whatever its edges say, and often that is
+/// every lane of a block), then the edge tests without
+/// allowances, then the bounds only where a candidate lies outside. Lanes
+/// not hit carry no meaningful `t` or barycentrics.
 #[inline(always)]
 pub fn intersect_mt_lanes(
     o: Vec3,
@@ -176,36 +183,58 @@ pub fn intersect_mt_lanes(
     let dot = |a: &V, b: &V| -> Vec4 { (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2] };
     let splat = |v: Vec3| -> V { [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)] };
     let (v0, e1, e2) = (&tri.v0, tri.e1, tri.e2);
-    let d_max = d.abs().max_element();
+    let d3 = d;
     let (o, d) = (&splat(o), &splat(d));
     let s1 = cross(d, &e2);
     let det = dot(&s1, &e1);
     let s = sub(o, v0);
     let s2 = cross(&s, &e1);
+    let inv = det.recip();
+    let t = dot(&s2, &e2) * inv;
+    let valid = det.cmpne(Vec4::ZERO) & det.is_finite_mask();
+    let in_range = t.cmpge(Vec4::splat(t_min)) & t.cmplt(Vec4::splat(t_max));
+    let candidates = valid & in_range;
+    let miss = || LaneHits {
+        mask: 0,
+        t,
+        b1: Vec4::ZERO,
+        b2: Vec4::ZERO,
+    };
+    // Lanes whose plane is not met within the interval are out whatever
+    // the edge tests say, so the edge tests are skipped where none is
+    // left.
+    if !candidates.any() {
+        return miss();
+    }
     let sign = Vec4::ONE.copysign(det);
     let n1 = dot(&s1, &s) * sign;
     let n2 = dot(&s2, d) * sign;
     let det_abs = det.abs();
-    let inv = det.recip();
-    let t = dot(&s2, &e2) * inv;
-    let inv_abs = inv.abs();
-    let valid = det.cmpne(Vec4::ZERO) & det.is_finite_mask();
-    let in_range = t.cmpge(Vec4::splat(t_min)) & t.cmplt(Vec4::splat(t_max));
-    let candidates = valid & in_range;
     let sum = n1 + n2;
     let strict_outside = n1.cmplt(Vec4::ZERO) | n2.cmplt(Vec4::ZERO) | sum.cmpgt(det_abs);
-    // NaN bounds leave the lane undecided.
-    let [big1, big2, big_det] = allowance_bounds(d_max, &s, &e1, &e2);
-    let loose_outside =
-        n1.cmplt(-big1) | n2.cmplt(-big2) | sum.cmpgt(det_abs + big1 + big2 + big_det);
-    let outside = if (candidates & strict_outside & !loose_outside).any() {
-        let [err1, err2, err_det] = allowances(d, &s, &e1, &e2);
-        n1.cmplt(-err1) | n2.cmplt(-err2) | sum.cmpgt(det_abs + err1 + err2 + err_det)
+    // Only candidates outside without allowances may change with them.
+    let outside = if (candidates & strict_outside).any() {
+        // NaN bounds leave the lane undecided.
+        let d_max = d3.abs().max_element();
+        let [big1, big2, big_det] = allowance_bounds(d_max, &s, &e1, &e2);
+        let loose_outside =
+            n1.cmplt(-big1) | n2.cmplt(-big2) | sum.cmpgt(det_abs + big1 + big2 + big_det);
+        if (candidates & strict_outside & !loose_outside).any() {
+            let [err1, err2, err_det] = allowances(d, &s, &e1, &e2);
+            n1.cmplt(-err1) | n2.cmplt(-err2) | sum.cmpgt(det_abs + err1 + err2 + err_det)
+        } else {
+            strict_outside
+        }
     } else {
         strict_outside
     };
+    let mask = (candidates & !outside).bitmask();
+    if mask == 0 {
+        return miss();
+    }
+    let inv_abs = inv.abs();
     LaneHits {
-        mask: (candidates & !outside).bitmask(),
+        mask,
         t,
         b1: (n1 * inv_abs).clamp(Vec4::ZERO, Vec4::ONE),
         b2: (n2 * inv_abs).clamp(Vec4::ZERO, Vec4::ONE),
