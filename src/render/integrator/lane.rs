@@ -56,6 +56,16 @@ pub(super) fn neg(a: [f32; 3]) -> [f32; 3] {
     a.map(|x| -x)
 }
 
+/// `a` where `c`, else `b`, by masking bits: no branch, so that a loop of
+/// them over lanes compiles to vector blends (LLVM turns a plain `if` on a
+/// lane mask back into a branch per lane, mispredicted where the mask has
+/// no pattern).
+#[inline(always)]
+pub(super) fn blend(c: bool, a: f32, b: f32) -> f32 {
+    let m = (c as u32).wrapping_neg();
+    f32::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
+}
+
 #[inline(always)]
 pub(super) fn pick(c: bool, a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [

@@ -21,8 +21,8 @@
 
 use super::columns::{Nodes, Wave};
 use super::lane::{
-    F, GROUP, Lane, Lane3, Mask, Z, Z3, at, dot, floor_lane, for_lanes, for_lanes_in, fresnel_lane,
-    get, neg, offset_origin, pick, put, put_if,
+    F, GROUP, Lane, Lane3, Mask, Z, Z3, at, blend, dot, floor_lane, for_lanes, for_lanes_in,
+    fresnel_lane, get, neg, offset_origin, pick, put, put_if,
 };
 use super::whitted::highlight;
 use crate::geometry::Shape;
@@ -636,7 +636,7 @@ impl Lanes {
         let hits = &self.hits;
         for (local, lane) in nodes.local.iter_mut().zip(&hits.local) {
             for (j, l) in local[first..first + n].iter_mut().enumerate() {
-                *l = if hits.shaded[j] != 0 { lane[j] } else { *l };
+                *l = blend(hits.shaded[j] != 0, lane[j], *l);
             }
         }
     }
@@ -704,11 +704,7 @@ impl Lanes {
             let (v, e, r) = (&v[c], &light.irradiance[c], &reflected[c]);
             let local = &mut nodes.local[c][first..first + n];
             for (j, l) in local.iter_mut().enumerate() {
-                *l = if open[j] != 0 {
-                    *l + (v[j] * e[j]) * r[j]
-                } else {
-                    *l
-                };
+                *l = blend(open[j] != 0, *l + (v[j] * e[j]) * r[j], *l);
             }
         }
     }
