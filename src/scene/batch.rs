@@ -195,7 +195,7 @@ pub(crate) fn widest<R>(f: impl FnOnce() -> R) -> R {
 /// AVX2, 0 for the baseline (checked once, then cached).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn simd_level() -> u8 {
+pub(crate) fn simd_level() -> u8 {
     use std::sync::atomic::{AtomicU8, Ordering};
     // 0: not checked yet; else 1 + the level.
     static LEVEL: AtomicU8 = AtomicU8::new(0);

@@ -14,6 +14,8 @@ mod mesh_scene;
 pub mod meshio;
 mod texture;
 
+#[cfg(target_arch = "x86_64")]
+pub(crate) use batch::simd_level;
 pub(crate) use batch::widest;
 pub use camera::Camera;
 pub use desc::SceneDesc;

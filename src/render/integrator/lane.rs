@@ -56,6 +56,85 @@ pub(super) fn neg(a: [f32; 3]) -> [f32; 3] {
     a.map(|x| -x)
 }
 
+/// Copies each of the `N` columns' lanes `j < n` with `keep[j] != 0`, in
+/// lane order, to the front of the matching column of `dst` (a stream
+/// compaction); returns how many were kept. With AVX-512F (detected at run
+/// time) sixteen lanes at a time by a compress and a masked store, else
+/// lane by lane; the same copies either way.
+#[inline(always)]
+pub(super) fn compress<const N: usize>(
+    keep: &Mask,
+    n: usize,
+    src: [&Lane; N],
+    dst: [&mut Lane; N],
+) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    if crate::scene::simd_level() >= 2 {
+        // SAFETY: the CPU has AVX-512F (checked just above).
+        return unsafe { compress_avx512(keep, n, src, dst) };
+    }
+    compress_scalar(keep, n, src, dst)
+}
+
+/// [`compress`] lane by lane.
+#[inline(always)]
+fn compress_scalar<const N: usize>(
+    keep: &Mask,
+    n: usize,
+    src: [&Lane; N],
+    mut dst: [&mut Lane; N],
+) -> usize {
+    let mut at = 0;
+    for (j, &k) in keep[..n].iter().enumerate() {
+        if k != 0 {
+            for (d, s) in dst.iter_mut().zip(&src) {
+                d[at] = s[j];
+            }
+            at += 1;
+        }
+    }
+    at
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn compress_avx512<const N: usize>(
+    keep: &Mask,
+    n: usize,
+    src: [&Lane; N],
+    mut dst: [&mut Lane; N],
+) -> usize {
+    use std::arch::x86_64::*;
+    const W: usize = 16;
+    const { assert!(BATCH.is_multiple_of(W)) };
+    let mut at = 0;
+    for chunk in 0..n.div_ceil(W) {
+        let base = chunk * W;
+        // Lanes past `n` are never kept.
+        let valid: u16 = if n - base >= W {
+            !0
+        } else {
+            (1u16 << (n - base)) - 1
+        };
+        // SAFETY (all): AVX-512F as the caller checked; every load reads
+        // 16 lanes at `base ≤ BATCH − 16`, and every store writes the
+        // `count ≤ 16` lanes at `at`, where `at + count ≤ base + 16 ≤
+        // BATCH`.
+        unsafe {
+            let flags = _mm512_loadu_si512(keep[base..].as_ptr().cast());
+            let mask = _mm512_test_epi32_mask(flags, flags) & valid;
+            let count = mask.count_ones() as usize;
+            let store = ((1u32 << count) - 1) as u16;
+            for (d, s) in dst.iter_mut().zip(&src) {
+                let packed = _mm512_maskz_compress_ps(mask, _mm512_loadu_ps(s[base..].as_ptr()));
+                _mm512_mask_storeu_ps(d[at..].as_mut_ptr(), store, packed);
+            }
+            at += count;
+        }
+    }
+    at
+}
+
 /// `a` where `c`, else `b`, by masking bits: no branch, so that a loop of
 /// them over lanes compiles to vector blends (LLVM turns a plain `if` on a
 /// lane mask back into a branch per lane, mispredicted where the mask has
@@ -180,6 +259,35 @@ mod tests {
 
     fn same(a: f32, b: f32) -> bool {
         a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+    }
+
+    #[test]
+    fn compress_keeps_the_flagged_lanes_in_order() {
+        let mut rng = crate::render::Pcg32::new(7, 3);
+        for round in 0..500 {
+            let n = (rng.next_f32() * (BATCH + 1) as f32) as usize % (BATCH + 1);
+            let dense = rng.next_f32();
+            let keep: Mask = std::array::from_fn(|_| u32::from(rng.next_f32() < dense));
+            let a: Lane = std::array::from_fn(|j| j as f32 + 0.5);
+            let b: Lane = std::array::from_fn(|j| -(j as f32) - round as f32);
+            let want: Vec<(f32, f32)> = (0..n)
+                .filter(|&j| keep[j] != 0)
+                .map(|j| (a[j], b[j]))
+                .collect();
+            let (mut x, mut y) = ([f32::NAN; BATCH], [f32::NAN; BATCH]);
+            let kept = compress(&keep, n, [&a, &b], [&mut x, &mut y]);
+            let (mut xs, mut ys) = ([f32::NAN; BATCH], [f32::NAN; BATCH]);
+            let kept_scalar = compress_scalar(&keep, n, [&a, &b], [&mut xs, &mut ys]);
+            assert_eq!(
+                (kept, kept_scalar),
+                (want.len(), want.len()),
+                "round {round}"
+            );
+            for (q, &(wa, wb)) in want.iter().enumerate() {
+                assert_eq!((x[q], y[q]), (wa, wb), "round {round} lane {q}");
+                assert_eq!((xs[q], ys[q]), (wa, wb), "round {round} lane {q}");
+            }
+        }
     }
 
     #[test]

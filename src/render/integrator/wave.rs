@@ -21,8 +21,8 @@
 
 use super::columns::{Nodes, Wave};
 use super::lane::{
-    F, GROUP, Lane, Lane3, Mask, Z, Z3, at, blend, dot, floor_lane, for_lanes, for_lanes_in,
-    fresnel_lane, get, neg, offset_origin, pick, put, put_if,
+    F, GROUP, Lane, Lane3, Mask, Z, Z3, at, blend, compress, dot, floor_lane, for_lanes,
+    for_lanes_in, fresnel_lane, get, neg, offset_origin, pick, put, put_if,
 };
 use super::whitted::highlight;
 use crate::geometry::Shape;
@@ -656,13 +656,16 @@ impl Lanes {
             lane[at] = j as u8;
             at += light.lit[j] as usize;
         }
-        for (q, &j) in lane[..at].iter().enumerate() {
-            let j = j as usize;
-            for c in 0..3 {
-                batch.o[c][q] = light.o[c][j];
-                batch.d[c][q] = light.d[c][j];
-            }
-        }
+        let [ox, oy, oz] = &mut batch.o;
+        let [dx, dy, dz] = &mut batch.d;
+        let (o, d) = (&light.o, &light.d);
+        let kept = compress(
+            &light.lit,
+            n,
+            [&o[0], &o[1], &o[2], &d[0], &d[1], &d[2]],
+            [ox, oy, oz, dx, dy, dz],
+        );
+        debug_assert_eq!(kept, at);
         batch.t_min[..at].fill(0.0);
         batch.t_max[..at].fill(1.0 - SHADOW_EPSILON);
         batch.len = at;
