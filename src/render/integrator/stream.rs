@@ -116,7 +116,7 @@ impl Whitted {
         let plan = Plan::new(scene);
         let mut lanes = s.lanes.take().unwrap_or_else(Lanes::new);
         let mut weights = [0.0f32; BATCH];
-        let mut lane = [0u8; BATCH];
+        let mut lane = [0u32; BATCH];
         let mut passed = [0.0f32; BATCH];
         let mut visibility = [Color::ZERO; BATCH];
         let mut depth = 0;

@@ -643,29 +643,35 @@ impl Lanes {
 
     /// Light `k`'s shadow rays of lanes `..n` (those that have one),
     /// gathered into `batch` in lane order; `lane[q]` is ray `q`'s lane.
-    pub(super) fn shadow_batch(
-        &self,
-        k: usize,
-        n: usize,
-        batch: &mut RayBatch,
-        lane: &mut [u8; BATCH],
-    ) {
+    pub(super) fn shadow_batch(&self, k: usize, n: usize, batch: &mut RayBatch, lane: &mut Mask) {
         let light = &self.lights[k];
-        let mut at = 0;
-        for j in 0..n {
-            lane[at] = j as u8;
-            at += light.lit[j] as usize;
-        }
+        // Lane numbers as bit patterns: the compress moves bits.
+        const LANE: Mask = {
+            let mut lanes = [0; BATCH];
+            let mut j = 0;
+            while j < BATCH {
+                lanes[j] = j as u32;
+                j += 1;
+            }
+            lanes
+        };
         let [ox, oy, oz] = &mut batch.o;
         let [dx, dy, dz] = &mut batch.d;
         let (o, d) = (&light.o, &light.d);
-        let kept = compress(
+        let at = compress(
             &light.lit,
             n,
-            [&o[0], &o[1], &o[2], &d[0], &d[1], &d[2]],
-            [ox, oy, oz, dx, dy, dz],
+            [
+                &o[0],
+                &o[1],
+                &o[2],
+                &d[0],
+                &d[1],
+                &d[2],
+                bytemuck::cast_ref(&LANE),
+            ],
+            [ox, oy, oz, dx, dy, dz, bytemuck::cast_mut(lane)],
         );
-        debug_assert_eq!(kept, at);
         batch.t_min[..at].fill(0.0);
         batch.t_max[..at].fill(1.0 - SHADOW_EPSILON);
         batch.len = at;
@@ -680,7 +686,7 @@ impl Lanes {
     pub(super) fn add_light(
         &self,
         (k, n): (usize, usize),
-        lane: &[u8],
+        lane: &[u32],
         visibility: impl Fn(usize) -> Color,
         first: usize,
         nodes: &mut Nodes,
