@@ -183,7 +183,7 @@ pub fn intersect_mt_lanes(
     let dot = |a: &V, b: &V| -> Vec4 { (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2] };
     let splat = |v: Vec3| -> V { [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)] };
     let (v0, e1, e2) = (&tri.v0, tri.e1, tri.e2);
-    let d3 = d;
+    let ray_d = d;
     let (o, d) = (&splat(o), &splat(d));
     let s1 = cross(d, &e2);
     let det = dot(&s1, &e1);
@@ -215,7 +215,7 @@ pub fn intersect_mt_lanes(
     // Only candidates outside without allowances may change with them.
     let outside = if (candidates & strict_outside).any() {
         // NaN bounds leave the lane undecided.
-        let d_max = d3.abs().max_element();
+        let d_max = ray_d.abs().max_element();
         let [big1, big2, big_det] = allowance_bounds(d_max, &s, &e1, &e2);
         let loose_outside =
             n1.cmplt(-big1) | n2.cmplt(-big2) | sum.cmpgt(det_abs + big1 + big2 + big_det);

@@ -68,6 +68,8 @@ pub(super) fn compress<const N: usize>(
     src: [&Lane; N],
     dst: [&mut Lane; N],
 ) -> usize {
+    // The vector path reads sixteen lanes from each chunk's start.
+    assert!(n <= BATCH, "{n} lanes in a batch of {BATCH}");
     #[cfg(target_arch = "x86_64")]
     if crate::scene::simd_level() >= 2 {
         // SAFETY: the CPU has AVX-512F (checked just above).
@@ -117,7 +119,8 @@ fn compress_avx512<const N: usize>(
             (1u16 << (n - base)) - 1
         };
         // SAFETY (all): AVX-512F as the caller checked; every load reads
-        // 16 lanes at `base ≤ BATCH − 16`, and every store writes the
+        // 16 lanes at `base ≤ BATCH − 16` (`base < n ≤ BATCH`, checked by
+        // the caller, and a multiple of 16), and every store writes the
         // `count ≤ 16` lanes at `at`, where `at + count ≤ base + 16 ≤
         // BATCH`.
         unsafe {
