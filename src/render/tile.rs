@@ -224,6 +224,27 @@ fn render_tile<I: Integrator>(
     } else {
         None
     };
+    if let Some(out) = tile_streamed.as_deref()
+        && plain
+    {
+        // One sample per pixel and no sums: each straight to its pixel
+        // (what the general loop below does in this case, without its
+        // per-pixel sums). A rejected sample leaves the pixel 0, the mean
+        // of an empty sum.
+        let mut samples = out.iter();
+        for row in tile.rows.iter_mut() {
+            for (pixel, &l) in row.iter_mut().zip(&mut samples) {
+                let bad = take_sample(l, settings.clamp, true, pixel, &mut SampleSum::default());
+                if bad {
+                    *pixel = SampleSum::default().mean(1);
+                }
+                bad_samples += bad as u64;
+                nan_pixels += bad as u64;
+            }
+        }
+        counters.rays.camera += out.len() as u64;
+        return tile_counters(&counters, bad_samples, nan_pixels);
+    }
     if let Some(out) = tile_streamed {
         // Each pixel's samples in turn, as traced.
         let mut radiance = out.chunks_exact(samples.count as usize);
