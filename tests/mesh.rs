@@ -60,15 +60,7 @@ fn bvh_matches_brute_force_over_100k_rays() {
         mesh(torus(2.0, 0.6, 96, 48)),
     ];
     for (k, m) in meshes.iter().enumerate() {
-        let bvh_ok = m.bvh.validate(
-            &m.triangles
-                .iter()
-                .map(|t| {
-                    let [a, b, c] = t.map(|i| Vec3::from(m.positions[i as usize]));
-                    glint::math::Aabb::new(a.min(b).min(c), a.max(b).max(c))
-                })
-                .collect::<Vec<_>>(),
-        );
+        let bvh_ok = m.validate_bvh();
         assert!(bvh_ok.is_ok(), "{bvh_ok:?}");
         let rays = match k {
             0 => 40_000,

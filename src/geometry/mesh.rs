@@ -19,22 +19,27 @@ pub struct Mesh {
     pub normals: Vec<glam::Vec3>,
     /// Per-vertex texture coordinates, or empty.
     pub uvs: Vec<Vec2>,
-    /// 8-wide BVH, collapsed from the binary SAH BVH.
+    /// 8-wide BVH, collapsed from the binary SAH BVH. Where the mesh keeps
+    /// [`Mesh::blocks`], each leaf names its first block rather than its
+    /// first triangle (see [`Mesh::leaf_triangles`]).
     pub bvh: Bvh8,
     /// For meshes of at most [`LEAF_BLOCK_TRIANGLES`] triangles: every
     /// leaf's triangles, four to a block in structure-of-arrays form (first
     /// vertex and edges, as the test uses them; a last block's spare lanes
     /// repeat its first triangle), the blocks of sibling leaves next to each
     /// other. A leaf is then tested without gathering its vertices through
-    /// the index array (Wald et al. 2014, Embree's `Triangle4v`).
+    /// the index array (Wald et al. 2014, Embree's `Triangle4v`), and the
+    /// tree's leaf words point at the blocks directly, as tinybvh's
+    /// `BVH8_CPU` and Embree's BVH8 leaves do: no lookup stands between a
+    /// node and its triangles.
     blocks: Vec<TriangleLanes>,
-    /// For the same meshes: the first block of the leaf that starts at
-    /// triangle `k` (entries of triangles that start no leaf are unused).
-    leaf_block: Vec<u32>,
+    /// For the same meshes: the triangle in lane 0 of each block (the
+    /// others follow it).
+    block_first: Vec<u32>,
     /// For meshes of at most [`SMALL_MESH_TRIANGLES`] triangles, instead
     /// of blocks: entry `k` holds triangles `k .. k + 4` (the last ones
     /// repeat triangle `k`), so that a leaf starting at any triangle reads
-    /// its lanes directly, without the lookup in [`Mesh::leaf_block`].
+    /// its lanes directly.
     lanes: Vec<TriangleLanes>,
     /// For the same small meshes: each triangle's unit normal, computed once.
     face_normals: Vec<Vec3>,
@@ -138,7 +143,7 @@ impl Mesh {
             uvs,
             bvh,
             blocks: Vec::new(),
-            leaf_block: Vec::new(),
+            block_first: Vec::new(),
             lanes: Vec::new(),
             face_normals: Vec::new(),
         };
@@ -157,13 +162,9 @@ impl Mesh {
         // The blocks are an acceleration: they are left out where they would
         // take more than half the memory left (most of a ray's time then goes
         // to gathering vertices, but the mesh renders).
-        let block_bytes = total as u64 * std::mem::size_of::<TriangleLanes>() as u64 + 4 * n as u64;
+        let block_bytes = total as u64 * (std::mem::size_of::<TriangleLanes>() as u64 + 4);
         let room = crate::render::memory::available_bytes().is_none_or(|a| block_bytes < a / 2);
         if !leaves.is_empty() && room {
-            mesh.leaf_block = vec![u32::MAX; n];
-            for (&(first, _), &start) in leaves.iter().zip(&starts) {
-                mesh.leaf_block[first as usize] = start;
-            }
             mesh.blocks = leaves
                 .par_iter()
                 .flat_map_iter(|&(first, count)| {
@@ -177,6 +178,17 @@ impl Mesh {
                     mesh.gather(&ids[..prims.len()])
                 })
                 .collect();
+            mesh.block_first = leaves
+                .iter()
+                .flat_map(|&(first, count)| {
+                    (0..count.div_ceil(LANES as u32)).map(move |j| first + j * LANES as u32)
+                })
+                .collect();
+            // Blocks are numbered in the order `leaves` lists the leaves,
+            // which `map_leaves` follows too.
+            let mut next = starts.iter();
+            mesh.bvh
+                .map_leaves(|_, _| *next.next().expect("one start per leaf"));
         }
         if n <= SMALL_MESH_TRIANGLES {
             mesh.lanes = (0..n as u32)
@@ -202,7 +214,7 @@ impl Mesh {
     /// Bytes of vertex, index and BVH data.
     pub fn bytes(&self) -> usize {
         (self.blocks.len() + self.lanes.len()) * std::mem::size_of::<TriangleLanes>()
-            + self.leaf_block.len() * 4
+            + self.block_first.len() * 4
             + self.face_normals.len() * std::mem::size_of::<Vec3>()
             + self.positions.len() * 12
             + self.triangles.len() * 12
@@ -222,12 +234,61 @@ impl Mesh {
         )
     }
 
-    /// Calls `visit(lanes, own, prims)` for the triangles of the leaf
-    /// `first .. first + count`, four at a time: lane `i` holds triangle
-    /// `prims[i]` where bit `i` of `own` is set. Stops when `visit` returns
-    /// true, and returns whether it did. Small meshes take the lanes from
-    /// [`Mesh::lanes`], larger ones from [`Mesh::blocks`] where they keep
-    /// them, else gather the vertices.
+    /// The first triangle of the leaf whose BVH word holds `first`: its
+    /// first block's lane 0 where the mesh keeps [`Mesh::blocks`], else
+    /// `first` itself. The leaf's `count` triangles follow it.
+    #[inline(always)]
+    fn leaf_triangles(&self, first: u32) -> u32 {
+        if self.blocks.is_empty() {
+            first
+        } else {
+            self.block_first[first as usize]
+        }
+    }
+
+    /// Checks the BVH as [`Bvh8::validate`] does against the triangles'
+    /// boxes, with block-numbered leaves (see [`Mesh::bvh`]) read as the
+    /// triangles they hold, and checks that each block holds its leaf's
+    /// triangles.
+    pub fn validate_bvh(&self) -> Result<(), String> {
+        let bounds: Vec<Aabb> = (0..self.triangles.len() as u32)
+            .map(|k| {
+                let (a, b, c) = self.vertices(k);
+                Aabb::new(a.min(b).min(c), a.max(b).max(c))
+            })
+            .collect();
+        let mut bvh = self.bvh.clone();
+        let mut bad = None;
+        bvh.map_leaves(|first, count| {
+            let start = self.leaf_triangles(first);
+            if !self.blocks.is_empty() {
+                for j in 0..count.div_ceil(LANES as u32) {
+                    let base = start + j * LANES as u32;
+                    let prims: Vec<u32> =
+                        (base..(base + LANES as u32).min(start + count)).collect();
+                    let block = self.blocks.get((first + j) as usize);
+                    if self.block_first.get((first + j) as usize) != Some(&base)
+                        || block != Some(&self.gather(&prims))
+                    {
+                        bad.get_or_insert(format!("block {} of leaf {first}", first + j));
+                    }
+                }
+            }
+            start
+        });
+        match bad {
+            Some(e) => Err(e),
+            None => bvh.validate(&bounds),
+        }
+    }
+
+    /// Calls `visit(lanes, own, prims)` for the `count` triangles of the
+    /// leaf whose BVH word holds `first` (see [`Mesh::leaf_triangles`]),
+    /// four at a time: lane `i` holds triangle `prims[i]` where bit `i` of
+    /// `own` is set. Stops when `visit` returns true, and returns whether
+    /// it did. Small meshes take the lanes from [`Mesh::lanes`], larger
+    /// ones from [`Mesh::blocks`] where they keep them, else gather the
+    /// vertices.
     #[inline(always)]
     fn leaf_lanes(
         &self,
@@ -257,10 +318,16 @@ impl Mesh {
             }
             return false;
         }
-        if let Some(&start) = self.leaf_block.get(first as usize) {
-            let leaf = &self.blocks[start as usize..(start + blocks) as usize];
-            for (j, lanes) in (0..).zip(leaf) {
-                if visit(lanes, own(j), &prims(j)) {
+        if !self.blocks.is_empty() {
+            // `first` is the leaf's first block.
+            let leaf = &self.blocks[first as usize..(first + blocks) as usize];
+            for (j, lanes) in (first..).zip(leaf) {
+                let base = self.block_first[j as usize];
+                if visit(
+                    lanes,
+                    own(j - first),
+                    &std::array::from_fn(|i| base + i as u32),
+                ) {
                     return true;
                 }
             }
@@ -358,10 +425,15 @@ impl Mesh {
     /// Whether the ray's segment meets one of a leaf's triangles.
     #[inline(always)]
     fn leaf_occludes(&self, ray: &Ray, first: u32, count: u32) -> bool {
-        self.leaf_lanes(first, count, |lanes, own, _| {
-            let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, ray.t_max);
-            h.mask & own != 0
-        })
+        self.leaf_lanes(
+            first,
+            count,
+            #[inline(always)]
+            |lanes, own, _| {
+                let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, ray.t_max);
+                h.mask & own != 0
+            },
+        )
     }
 
     /// The closest hit before `t_max` among a leaf's triangles, the first
@@ -376,22 +448,27 @@ impl Mesh {
         bary: &mut (f32, f32),
     ) -> Option<(u32, f32)> {
         let mut best = None;
-        self.leaf_lanes(first, count, |lanes, own, prims| {
-            let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, t_max);
-            // The nearest lane, the first of equals (spare lanes are
-            // masked off).
-            let mut bits = h.mask & own;
-            while bits != 0 {
-                let i = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                if h.t[i] < t_max {
-                    t_max = h.t[i];
-                    *bary = (h.b1[i], h.b2[i]);
-                    best = Some((prims[i], t_max));
+        self.leaf_lanes(
+            first,
+            count,
+            #[inline(always)]
+            |lanes, own, prims| {
+                let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, t_max);
+                // The nearest lane, the first of equals (spare lanes are
+                // masked off).
+                let mut bits = h.mask & own;
+                while bits != 0 {
+                    let i = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if h.t[i] < t_max {
+                        t_max = h.t[i];
+                        *bary = (h.b1[i], h.b2[i]);
+                        best = Some((prims[i], t_max));
+                    }
                 }
-            }
-            false
-        });
+                false
+            },
+        );
         best
     }
 
@@ -416,13 +493,16 @@ impl Mesh {
         mut hit: impl FnMut(f32, f32, bool),
     ) {
         let d_len = ray.d.length();
-        self.bvh.any(ray, &mut counters.bvh, |prim| {
-            let (v0, v1, v2) = self.vertices(prim);
-            if let Some((h, on_edge)) =
-                intersect_watertight(ray.o, ray.d, v0, v1, v2, ray.t_min, ray.t_max)
-            {
-                let n = triangle_normal(v0, v1, v2);
-                hit(h.t, (n.dot(ray.d) / d_len).abs(), on_edge);
+        self.bvh.any_leaves(ray, &mut counters.bvh, |first, count| {
+            let first = self.leaf_triangles(first);
+            for prim in first..first + count {
+                let (v0, v1, v2) = self.vertices(prim);
+                if let Some((h, on_edge)) =
+                    intersect_watertight(ray.o, ray.d, v0, v1, v2, ray.t_min, ray.t_max)
+                {
+                    let n = triangle_normal(v0, v1, v2);
+                    hit(h.t, (n.dot(ray.d) / d_len).abs(), on_edge);
+                }
             }
             false
         });
@@ -753,5 +833,52 @@ impl MeshInstance {
             Some(x) => x.object_from_world.transform_point3a(p),
         };
         self.mesh.contains(p)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::testgen::torus;
+
+    /// A mesh with leaf blocks, whose BVH leaves then name blocks.
+    fn blocked() -> Mesh {
+        let (v, f) = torus(2.0, 0.6, 96, 48);
+        let m = Mesh::new(v, f, vec![], vec![]).unwrap();
+        assert!(m.triangles.len() > SMALL_MESH_TRIANGLES && !m.blocks.is_empty());
+        m
+    }
+
+    #[test]
+    fn block_numbered_leaves_validate_and_hold_their_triangles() {
+        let m = blocked();
+        assert_eq!(m.validate_bvh(), Ok(()));
+        // Every triangle is reached through exactly one leaf's blocks.
+        let mut seen = vec![0u32; m.triangles.len()];
+        for (first, count) in m.bvh.leaves() {
+            m.leaf_lanes(first, count, |_, own, prims| {
+                for i in 0..LANES {
+                    if own & 1 << i != 0 {
+                        seen[prims[i] as usize] += 1;
+                    }
+                }
+                false
+            });
+        }
+        assert!(seen.iter().all(|&s| s == 1));
+    }
+
+    #[test]
+    fn validation_notices_a_wrong_block() {
+        let mut m = blocked();
+        m.blocks.swap(3, 4);
+        assert!(m.validate_bvh().is_err());
+        let mut m = blocked();
+        m.block_first[5] += 1;
+        assert!(m.validate_bvh().is_err());
+        let mut m = blocked();
+        m.bvh
+            .map_leaves(|first, _| if first == 7 { 8 } else { first });
+        assert!(m.validate_bvh().is_err());
     }
 }

@@ -169,6 +169,21 @@ impl Bvh8 {
         self.nodes.len() * std::mem::size_of::<Bvh8Node>()
     }
 
+    /// Rewrites every leaf's first primitive as `f(first, count)` (which must
+    /// stay below [`MAX_PRIMITIVES`]); the count is kept.
+    pub fn map_leaves(&mut self, mut f: impl FnMut(u32, u32) -> u32) {
+        for node in &mut self.nodes {
+            for k in 0..WIDTH {
+                if node.is_leaf(k) {
+                    let (first, count) = Bvh8Node::leaf_range(node.child[k]);
+                    let new = f(first, count);
+                    assert!(new < 1 << LEAF_FIRST_BITS, "leaf start {new}");
+                    node.child[k] = LEAF | (count - 1) << LEAF_FIRST_BITS | new;
+                }
+            }
+        }
+    }
+
     /// Every leaf as `(first primitive, count)`, node by node (siblings
     /// together, as traversal meets them).
     pub fn leaves(&self) -> impl Iterator<Item = (u32, u32)> + '_ {
