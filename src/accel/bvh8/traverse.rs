@@ -468,20 +468,57 @@ impl Bvh8 {
         if self.nodes.is_empty() {
             return None;
         }
-        let setup = RaySetup::new(ray, &self.root());
         #[cfg(target_arch = "x86_64")]
-        if has_avx2() && setup.fused {
-            // SAFETY (all): the CPU has AVX2 and FMA (`has_avx2`), the
-            // octant is the ray's, and the ray takes the fused test.
-            return unsafe {
-                by_octant!(setup.octant, OCT => self.closest_avx2::<OCT>(&setup, ray.t_max, counters, test))
-            };
+        if has_avx2() {
+            // SAFETY: the CPU has AVX2 and FMA (`has_avx2`).
+            return unsafe { self.closest_entry_avx2(ray, counters, test) };
         }
+        self.closest_portable(ray, counters, test)
+    }
+
+    /// [`Bvh8::closest_leaves`] with the portable node visit; kept out of
+    /// line so that the AVX2 entry's frame stays small.
+    #[inline(never)]
+    fn closest_portable(
+        &self,
+        ray: &Ray,
+        counters: &mut TraversalCounters,
+        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+    ) -> Option<(u32, f32)> {
+        let setup = RaySetup::new(ray, &self.root());
         self.closest_with(ray.t_max, counters, test, &PortableLanes::new(&setup))
+    }
+
+    /// The per-ray entry where the CPU has AVX2 and FMA: the setup, then
+    /// the root's eight slab tests ([`avx2::hits_a_child`]); a ray that
+    /// misses them all (most camera rays past a mesh) returns here, having
+    /// visited one node as the kernel would, without the kernel's setup
+    /// and frame. The others go on to the kernel compiled for their
+    /// octant. Rays that cannot take the fused test take the portable
+    /// path.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
+    fn closest_entry_avx2(
+        &self,
+        ray: &Ray,
+        counters: &mut TraversalCounters,
+        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+    ) -> Option<(u32, f32)> {
+        let setup = RaySetup::new(ray, &self.root());
+        if !setup.fused {
+            return self.closest_portable(ray, counters, test);
+        }
+        if !avx2::hits_a_child(&self.nodes[0], &setup, ray.t_max) {
+            counters.nodes_visited += 1;
+            return None;
+        }
+        // The octant is the ray's, and the ray takes the fused test.
+        by_octant!(setup.octant, OCT => self.closest_avx2::<OCT>(&setup, ray.t_max, counters, test))
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
+    #[inline(never)]
     fn closest_avx2<const OCT: u32>(
         &self,
         setup: &RaySetup,

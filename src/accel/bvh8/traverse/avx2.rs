@@ -53,26 +53,75 @@ impl<const OCT: u32> Avx2Lanes<OCT> {
     /// both).
     #[inline(always)]
     fn test(&self, n: &Bvh8Node, t_max: f32) -> (__m256, __m256) {
-        // SAFETY (all blocks): an `Avx2Lanes` exists only where the CPU
-        // has AVX2, and each row is 8 floats aligned to 32 bytes
-        // (`Lanes8`).
-        let lanes = |row: usize| unsafe { _mm256_load_ps(n.planes[row].0.as_ptr()) };
-        let near = |a: usize| unsafe {
-            _mm256_fmsub_ps(lanes(Self::NEAR[a]), self.inv[a], self.near_c[a])
-        };
-        let far =
-            |a: usize| unsafe { _mm256_fmsub_ps(lanes(Self::FAR[a]), self.inv[a], self.far_c[a]) };
-        let (nx, ny, nz) = (near(0), near(1), near(2));
-        let (fx, fy, fz) = (far(0), far(1), far(2));
+        // SAFETY: an `Avx2Lanes` exists only where the CPU has AVX2 and
+        // FMA.
         unsafe {
-            let enter = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, self.t_min));
-            let exit = _mm256_min_ps(
-                _mm256_min_ps(fx, fy),
-                _mm256_min_ps(fz, _mm256_set1_ps(t_max)),
-            );
-            (enter, _mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit))
+            fused_test(
+                n,
+                (Self::NEAR, Self::FAR),
+                (&self.inv, &self.near_c, &self.far_c),
+                self.t_min,
+                t_max,
+            )
         }
     }
+}
+
+/// The eight fused slab tests of a node: the entry distances and the mask
+/// of the children hit within `[t_min, t_max]`, for near and far plane rows
+/// `rows` (constants in the kernels, known when compiling; chosen at run
+/// time by [`hits_a_child`]) and the ray's constants `(inv, near_c, far_c)`
+/// splatted. The caller makes sure that the CPU has AVX2 and FMA (this
+/// is inlined into callers compiled with them).
+#[inline(always)]
+unsafe fn fused_test(
+    n: &Bvh8Node,
+    (near_rows, far_rows): ([usize; 3], [usize; 3]),
+    (inv, near_c, far_c): (&[__m256; 3], &[__m256; 3], &[__m256; 3]),
+    t_min: __m256,
+    t_max: f32,
+) -> (__m256, __m256) {
+    // SAFETY (all): the CPU has AVX2 and FMA (the caller), and each row
+    // is 8 floats aligned to 32 bytes (`Lanes8`).
+    let lanes = |row: usize| unsafe { _mm256_load_ps(n.planes[row].0.as_ptr()) };
+    let near = |a: usize| unsafe { _mm256_fmsub_ps(lanes(near_rows[a]), inv[a], near_c[a]) };
+    let far = |a: usize| unsafe { _mm256_fmsub_ps(lanes(far_rows[a]), inv[a], far_c[a]) };
+    let (nx, ny, nz) = (near(0), near(1), near(2));
+    let (fx, fy, fz) = (far(0), far(1), far(2));
+    unsafe {
+        let enter = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, t_min));
+        let exit = _mm256_min_ps(
+            _mm256_min_ps(fx, fy),
+            _mm256_min_ps(fz, _mm256_set1_ps(t_max)),
+        );
+        (enter, _mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit))
+    }
+}
+
+/// Whether the ray's fused test takes any child of `n` within `[t_min,
+/// t_max]` (`t_max` as the kernels' visits take it, widened by
+/// [`WIDEN`]): the same tests, operation for operation, as a kernel's
+/// visit of `n`, with the near and far planes chosen by the ray's octant
+/// at run time. Lets a ray that misses every child of the root leave
+/// before the kernel's setup. The caller makes sure that the CPU has AVX2
+/// and FMA and that the ray takes the fused test.
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+pub(super) fn hits_a_child(n: &Bvh8Node, r: &RaySetup, t_max: f32) -> bool {
+    let near_rows: [usize; 3] = std::array::from_fn(|a| a + 3 * (r.octant >> a & 1 == 0) as usize);
+    let far_rows = near_rows.map(|row| (row + 3) % 6);
+    let splat = |v: crate::math::Vec3| [0, 1, 2].map(|a| _mm256_set1_ps(v[a]));
+    // SAFETY: the CPU has AVX2 and FMA (this function's features).
+    let (_, hit) = unsafe {
+        fused_test(
+            n,
+            (near_rows, far_rows),
+            (&splat(r.inv), &splat(r.near_c), &splat(r.far_c)),
+            _mm256_set1_ps(r.t_min),
+            t_max * WIDEN,
+        )
+    };
+    _mm256_movemask_ps(hit) != 0
 }
 
 impl<const OCT: u32> NodeVisit for Avx2Lanes<OCT> {
