@@ -379,6 +379,10 @@ pub(super) fn has_avx2() -> bool {
 /// first, which also honours [`force_portable`].
 #[inline(always)]
 pub(super) fn has_avx512vl() -> bool {
+    #[cfg(test)]
+    if tests::AVX2_ONLY.with(|only| only.get()) {
+        return false;
+    }
     #[cfg(target_arch = "x86_64")]
     {
         // 0: not checked yet; 1: no; 2: yes.

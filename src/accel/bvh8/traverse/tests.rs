@@ -7,6 +7,13 @@ use crate::accel::bvh8::EMPTY;
 use crate::math::Aabb;
 use crate::render::Pcg32;
 
+thread_local! {
+    /// Set in a test thread to make the kernels skip their AVX-512VL
+    /// copies (see [`super::has_avx512vl`]), so that the AVX2 copies are
+    /// tested on CPUs that have both.
+    pub(super) static AVX2_ONLY: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
 fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {
     let mut rng = Pcg32::new(seed, 1);
     (0..n)
@@ -253,9 +260,12 @@ fn whole_traversals_agree_with_and_without_avx2() {
     let bvh = Bvh::build(&b);
     let wide = Bvh8::from_binary(&bvh);
     let leaf_boxes: Vec<Aabb> = bvh.indices.iter().map(|&i| b[i as usize]).collect();
-    let mut rng = Pcg32::new(12, 4);
-    let mut results = [Vec::new(), Vec::new()];
+    // Pass 0: the fastest kernels the CPU has (AVX-512VL where present);
+    // 1: the AVX2 copies; 2: the portable visit.
+    let mut results = [Vec::new(), Vec::new(), Vec::new()];
     for (pass, out) in results.iter_mut().enumerate() {
+        AVX2_ONLY.with(|only| only.set(pass == 1));
+        let mut rng = Pcg32::new(12, 4);
         let setups: Vec<Ray> = (0..3000)
             .map(|_| {
                 let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0
@@ -265,8 +275,7 @@ fn whole_traversals_agree_with_and_without_avx2() {
                 Ray::new(o, d)
             })
             .collect();
-        rng = Pcg32::new(12, 4);
-        for ray in setups {
+        for mut ray in setups {
             let inv = ray.inv_d();
             let t_of = |p: u32| {
                 leaf_boxes[p as usize]
@@ -275,34 +284,53 @@ fn whole_traversals_agree_with_and_without_avx2() {
             };
             let mut c = TraversalCounters::default();
             let mut order = Vec::new();
-            let hit = if pass == 0 {
-                wide.closest_leaves(&ray, &mut c, |first, count, t_max| {
-                    order.push(first);
-                    (first..first + count)
-                        .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
-                        .min_by(|x, y| x.1.total_cmp(&y.1))
-                })
-            } else {
-                let mut c2 = TraversalCounters::default();
-                let portable = PortableLanes::new(&RaySetup::new(&ray, &wide.root()));
-                let r = wide.closest_with(
-                    ray.t_max,
-                    &mut c2,
-                    |first, count, t_max| {
-                        order.push(first);
-                        (first..first + count)
-                            .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
-                            .min_by(|x, y| x.1.total_cmp(&y.1))
-                    },
-                    &portable,
-                );
-                c = c2;
-                r
+            let mut leaf = |first: u32, count: u32, t_max: f32| {
+                order.push(first);
+                (first..first + count)
+                    .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
+                    .min_by(|x, y| x.1.total_cmp(&y.1))
             };
-            out.push((hit.map(|h| (h.0, h.1.to_bits())), order, c.nodes_visited));
+            let hit = if pass < 2 {
+                wide.closest_leaves(&ray, &mut c, &mut leaf)
+            } else {
+                let portable = PortableLanes::new(&RaySetup::new(&ray, &wide.root()));
+                wide.closest_with(ray.t_max, &mut c, &mut leaf, &portable)
+            };
+            // Any hit on the segment up to the middle of the closest hit.
+            ray.t_max = hit.map_or(5.0, |h| h.1 * 0.5);
+            let inv = ray.inv_d();
+            let mut any_order = Vec::new();
+            let mut any_leaf = |first: u32, count: u32| {
+                any_order.push(first);
+                (first..first + count).any(|p| {
+                    leaf_boxes[p as usize]
+                        .slab(ray.o, inv)
+                        .is_some_and(|h| h.t_enter.max(0.0) < ray.t_max)
+                })
+            };
+            let mut any_c = TraversalCounters::default();
+            let blocked = if pass < 2 {
+                wide.any_leaves(&ray, &mut any_c, &mut any_leaf)
+            } else {
+                let portable = PortableLanes::new(&RaySetup::new(&ray, &wide.root()));
+                wide.any_with(ray.t_max, &mut any_c, &mut any_leaf, &portable)
+            };
+            out.push((
+                hit.map(|h| (h.0, h.1.to_bits())),
+                order,
+                c.nodes_visited,
+                blocked,
+                any_order,
+                any_c.nodes_visited,
+            ));
         }
     }
+    AVX2_ONLY.with(|only| only.set(false));
     assert_eq!(results[0], results[1]);
+    assert_eq!(results[0], results[2]);
+    // Rays that miss the root's children and rays that do not, both.
+    let root_only = results[0].iter().filter(|r| r.2 == 1).count();
+    assert!(root_only > 100 && root_only < 2900, "{root_only}");
 }
 
 /// The fused slab test takes every child the plain one takes, and keeps
