@@ -260,18 +260,28 @@ impl Mesh {
         let mut bvh = self.bvh.clone();
         let mut bad = None;
         bvh.map_leaves(|first, count| {
-            let start = self.leaf_triangles(first);
-            if !self.blocks.is_empty() {
-                for j in 0..count.div_ceil(LANES as u32) {
-                    let base = start + j * LANES as u32;
-                    let prims: Vec<u32> =
-                        (base..(base + LANES as u32).min(start + count)).collect();
-                    let block = self.blocks.get((first + j) as usize);
-                    if self.block_first.get((first + j) as usize) != Some(&base)
-                        || block != Some(&self.gather(&prims))
-                    {
-                        bad.get_or_insert(format!("block {} of leaf {first}", first + j));
-                    }
+            if self.blocks.is_empty() {
+                return first;
+            }
+            let Some(&start) = self.block_first.get(first as usize) else {
+                bad.get_or_insert(format!("leaf names block {first}, past the last"));
+                return first;
+            };
+            let n = self.triangles.len() as u32;
+            if start.checked_add(count).is_none_or(|end| end > n) {
+                bad.get_or_insert(format!("leaf at block {first} starts at triangle {start}"));
+                return first;
+            }
+            for j in 0..count.div_ceil(LANES as u32) {
+                let base = start + j * LANES as u32;
+                let end = (base + LANES as u32).min(start + count);
+                let prims: Vec<u32> = (base..end).collect();
+                let k = (first + j) as usize;
+                if end > n
+                    || self.block_first.get(k) != Some(&base)
+                    || self.blocks.get(k) != Some(&self.gather(&prims))
+                {
+                    bad.get_or_insert(format!("block {k} of the leaf at block {first}"));
                 }
             }
             start
@@ -875,6 +885,15 @@ mod tests {
         assert!(m.validate_bvh().is_err());
         let mut m = blocked();
         m.block_first[5] += 1;
+        assert!(m.validate_bvh().is_err());
+        // Out of range: an error, not a panic.
+        let mut m = blocked();
+        m.block_first[5] = u32::MAX - 8;
+        assert!(m.validate_bvh().is_err());
+        let mut m = blocked();
+        let past = m.blocks.len() as u32 + 5;
+        m.bvh
+            .map_leaves(|first, _| if first == 7 { past } else { first });
         assert!(m.validate_bvh().is_err());
         let mut m = blocked();
         m.bvh
