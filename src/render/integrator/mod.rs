@@ -71,7 +71,8 @@ pub trait Integrator: Sync {
     /// The radiance of each camera ray of `rays` into `out`, exactly as
     /// [`Integrator::radiance`] gives it, for integrators that can trace
     /// many rays at once in `scene` (without random numbers); returns false,
-    /// having done nothing, where they cannot (the default).
+    /// having done nothing, where they cannot (the default). Returning true,
+    /// it has written every element of `out` (which may hold old values).
     fn radiance_stream(
         &self,
         scene: &Scene,
