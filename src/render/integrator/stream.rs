@@ -103,14 +103,7 @@ impl Whitted {
     ) {
         assert_eq!(rays.len(), out.len());
         s.nodes.clear();
-        s.wave.clear();
-        s.wave.room(rays.len());
-        for (i, ray) in rays.iter().enumerate() {
-            s.wave.rays.set_ray(i, ray);
-            s.wave.factor.iter_mut().for_each(|c| c[i] = 1.0);
-            s.wave.weight[i] = 1.0;
-        }
-        s.wave.rays.len = rays.len();
+        s.wave.start(rays);
         let mut batch = s.batch.take().unwrap_or_else(|| RayBatch::new(&[]));
         let mut shadow_batch = s.shadow_batch.take().unwrap_or_else(|| RayBatch::new(&[]));
         let plan = Plan::new(scene);
