@@ -276,7 +276,7 @@ impl Lanes for Sphere {
 }
 
 /// Relative error bound of [`sphere_misses_f32`]'s discriminant: 32 units
-/// of f32 rounding (2⁻²⁴ each), about 1.4 times what the analysis there
+/// of f32 rounding (2⁻²⁴ each), about 1.3 times what the analysis there
 /// needs.
 const SPHERE_MISS_MARGIN: f32 = 32.0 / 16_777_216.0;
 
