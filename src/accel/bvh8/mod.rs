@@ -15,9 +15,11 @@
 //! do not depend on the CPU.
 //!
 //! Collapse: a binary node's children are expanded, largest surface area
-//! first, until the node has eight children or only leaves are left. Each
-//! node then gets its children's visiting order for each octant of ray
-//! directions, so that traversal orders them without sorting.
+//! first, until the node has eight children or only leaves are left; a
+//! subtree of at most eight leaves is expanded into all of them at once
+//! where they fit, and otherwise kept whole as one node of leaves (see
+//! `collapse`). Each node then gets its children's visiting order for each
+//! octant of ray directions, so that traversal orders them without sorting.
 
 mod collapse;
 mod packet;
