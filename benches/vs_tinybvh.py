@@ -15,7 +15,8 @@ same BVH8_CPU lines, and glint's primary packets against the faster of
 tinybvh's two 256-ray packet kernels (`BVH 256-pkt`, primary rays only).
 
     python3 benches/vs_tinybvh.py                 # igea and icosphere_8
-    python3 benches/vs_tinybvh.py other.ply ...   # any binary PLY meshes too
+    python3 benches/vs_tinybvh.py other.ply ...   # other meshes (ASCII PLY
+                                                  # and OBJ are converted)
 
 Run it alone on the machine: the two are timed one after the other, and
 ratios from a machine busy with other work mean little."""
@@ -75,6 +76,25 @@ def glint(meshes):
     return {n: tuple(found.get((k, n)) for k in kinds) for n in names}
 
 
+def binary_ply(mesh):
+    """`mesh` itself if it is a binary little-endian PLY, which tinybvh's
+    bench.cpp reads; otherwise (an ASCII PLY such as the Stanford bunny,
+    an OBJ, ...) a copy converted by trimesh, unprocessed, into OUT/meshes
+    under the same name, which both sides then read."""
+    with open(mesh, "rb") as f:
+        head = f.read(512)
+    if head.startswith(b"ply") and b"format binary_little_endian" in head:
+        return mesh
+    import trimesh  # noqa: E402
+    out = os.path.join(OUT, "meshes", os.path.splitext(os.path.basename(mesh))[0] + ".ply")
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    m = trimesh.load(mesh, process=False, force="mesh")
+    with open(out, "wb") as f:
+        f.write(trimesh.exchange.ply.export_ply(m, encoding="binary"))
+    print(f"+ {mesh} converted to binary PLY: {out}", file=sys.stderr)
+    return out
+
+
 def main():
     tb = os.path.join(ANCHORS, "tinybvh")
     if not os.path.isfile(os.path.join(tb, "tiny_bvh.h")):
@@ -88,7 +108,7 @@ def main():
         import common  # noqa: E402  (numpy, trimesh)
         meshes = [os.path.join(SHARED, "data", "igea_tris.ply")]
         meshes += common.generated_meshes([8], os.path.join(OUT, "meshes"))
-    meshes = [os.path.abspath(m) for m in meshes]
+    meshes = [binary_ply(os.path.abspath(m)) for m in meshes]
     ours = glint(meshes)
     print(f"{'mesh':<16} {'kind':<8} {'glint':>8} {'tinybvh':>8} {'ratio':>6}   (Mrays/s, 2 threads)")
     for mesh in meshes:
