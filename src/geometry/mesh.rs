@@ -301,13 +301,20 @@ impl Mesh {
     /// it did. Small meshes take the lanes from [`Mesh::lanes`], larger
     /// ones from [`Mesh::blocks`] where they keep them, else gather the
     /// vertices.
+    ///
+    /// `BLOCKS` says whether the mesh keeps blocks; the callers choose it
+    /// once per ray (or packet), outside the traversal, so that a kernel
+    /// carries only one way to reach a leaf's triangles: with all three
+    /// inlined, the any-hit kernel kept its next node and the bounds of the
+    /// other arrays in memory, not registers.
     #[inline(always)]
-    fn leaf_lanes(
+    fn leaf_lanes<const BLOCKS: bool>(
         &self,
         first: u32,
         count: u32,
         mut visit: impl FnMut(&TriangleLanes, u32, &[u32; LANES]) -> bool,
     ) -> bool {
+        debug_assert_eq!(BLOCKS, !self.blocks.is_empty());
         let blocks = count.div_ceil(LANES as u32);
         let own = |j: u32| {
             let left = count - j * LANES as u32;
@@ -317,20 +324,7 @@ impl Mesh {
                 (1u32 << left) - 1
             }
         };
-        let prims = |j: u32| {
-            let base = first + j * LANES as u32;
-            std::array::from_fn(|i| base + i as u32)
-        };
-        if !self.lanes.is_empty() {
-            for j in 0..blocks {
-                let p = prims(j);
-                if visit(&self.lanes[p[0] as usize], own(j), &p) {
-                    return true;
-                }
-            }
-            return false;
-        }
-        if !self.blocks.is_empty() {
+        if BLOCKS {
             // `first` is the leaf's first block.
             let leaf = &self.blocks[first as usize..(first + blocks) as usize];
             for (j, lanes) in (first..).zip(leaf) {
@@ -340,6 +334,19 @@ impl Mesh {
                     own(j - first),
                     &std::array::from_fn(|i| base + i as u32),
                 ) {
+                    return true;
+                }
+            }
+            return false;
+        }
+        let prims = |j: u32| {
+            let base = first + j * LANES as u32;
+            std::array::from_fn(|i| base + i as u32)
+        };
+        if !self.lanes.is_empty() {
+            for j in 0..blocks {
+                let p = prims(j);
+                if visit(&self.lanes[p[0] as usize], own(j), &p) {
                     return true;
                 }
             }
@@ -378,12 +385,27 @@ impl Mesh {
     /// are tested four at a time ([`intersect_mt_lanes`]).
     #[inline]
     pub fn intersect_object(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
+        if self.blocks.is_empty() {
+            self.intersect_in::<false>(ray, counters)
+        } else {
+            self.intersect_in::<true>(ray, counters)
+        }
+    }
+
+    /// [`Mesh::intersect_object`] with the leaves reached as `BLOCKS` says
+    /// (see [`Mesh::leaf_lanes`]).
+    #[inline(always)]
+    fn intersect_in<const BLOCKS: bool>(
+        &self,
+        ray: &Ray,
+        counters: &mut TraceCounters,
+    ) -> Option<ShapeHit> {
         let mut bary = (0.0, 0.0);
         let (prim, t) = self.bvh.closest_leaves(
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |first, count, t_max| self.leaf_closest(ray, first, count, t_max, &mut bary),
+            |first, count, t_max| self.leaf_closest::<BLOCKS>(ray, first, count, t_max, &mut bary),
         )?;
         Some(ShapeHit {
             t,
@@ -405,13 +427,28 @@ impl Mesh {
         assert!(rays.len() <= PACKET && out.len() == rays.len());
         let mut bary = [(0.0, 0.0); PACKET];
         let mut hits = [None; PACKET];
-        self.bvh.closest_packet(
-            rays,
-            &mut counters.bvh,
-            #[inline(always)]
-            |r, first, count, t_max| self.leaf_closest(&rays[r], first, count, t_max, &mut bary[r]),
-            &mut hits[..rays.len()],
-        );
+        let hits_out = &mut hits[..rays.len()];
+        if self.blocks.is_empty() {
+            self.bvh.closest_packet(
+                rays,
+                &mut counters.bvh,
+                #[inline(always)]
+                |r, first, count, t_max| {
+                    self.leaf_closest::<false>(&rays[r], first, count, t_max, &mut bary[r])
+                },
+                hits_out,
+            );
+        } else {
+            self.bvh.closest_packet(
+                rays,
+                &mut counters.bvh,
+                #[inline(always)]
+                |r, first, count, t_max| {
+                    self.leaf_closest::<true>(&rays[r], first, count, t_max, &mut bary[r])
+                },
+                hits_out,
+            );
+        }
         for (r, o) in out.iter_mut().enumerate() {
             *o = hits[r].map(|(prim, t)| ShapeHit {
                 t,
@@ -425,19 +462,29 @@ impl Mesh {
     /// [`Mesh::occludes_object`] for up to [`PACKET`] coherent rays at once
     /// ([`Bvh8::any_packet`]): the same answers.
     pub fn occludes_packet(&self, rays: &[Ray], counters: &mut TraceCounters, out: &mut [bool]) {
-        self.bvh.any_packet(
-            rays,
-            &mut counters.bvh,
-            #[inline(always)]
-            |r, first, count| self.leaf_occludes(&rays[r], first, count),
-            out,
-        );
+        if self.blocks.is_empty() {
+            self.bvh.any_packet(
+                rays,
+                &mut counters.bvh,
+                #[inline(always)]
+                |r, first, count| self.leaf_occludes::<false>(&rays[r], first, count),
+                out,
+            );
+        } else {
+            self.bvh.any_packet(
+                rays,
+                &mut counters.bvh,
+                #[inline(always)]
+                |r, first, count| self.leaf_occludes::<true>(&rays[r], first, count),
+                out,
+            );
+        }
     }
 
     /// Whether the ray's segment meets one of a leaf's triangles.
     #[inline(always)]
-    fn leaf_occludes(&self, ray: &Ray, first: u32, count: u32) -> bool {
-        self.leaf_lanes(
+    fn leaf_occludes<const BLOCKS: bool>(&self, ray: &Ray, first: u32, count: u32) -> bool {
+        self.leaf_lanes::<BLOCKS>(
             first,
             count,
             #[inline(always)]
@@ -451,7 +498,7 @@ impl Mesh {
     /// The closest hit before `t_max` among a leaf's triangles, the first
     /// of equals, with its barycentrics put in `bary`.
     #[inline(always)]
-    fn leaf_closest(
+    fn leaf_closest<const BLOCKS: bool>(
         &self,
         ray: &Ray,
         first: u32,
@@ -460,7 +507,7 @@ impl Mesh {
         bary: &mut (f32, f32),
     ) -> Option<(u32, f32)> {
         let mut best = None;
-        self.leaf_lanes(
+        self.leaf_lanes::<BLOCKS>(
             first,
             count,
             #[inline(always)]
@@ -487,12 +534,21 @@ impl Mesh {
     /// Whether an object-space ray's segment meets the mesh (any hit).
     #[inline]
     pub fn occludes_object(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
-        self.bvh.any_leaves(
-            ray,
-            &mut counters.bvh,
-            #[inline(always)]
-            |first, count| self.leaf_occludes(ray, first, count),
-        )
+        if self.blocks.is_empty() {
+            self.bvh.any_leaves(
+                ray,
+                &mut counters.bvh,
+                #[inline(always)]
+                |first, count| self.leaf_occludes::<false>(ray, first, count),
+            )
+        } else {
+            self.bvh.any_leaves(
+                ray,
+                &mut counters.bvh,
+                #[inline(always)]
+                |first, count| self.leaf_occludes::<true>(ray, first, count),
+            )
+        }
     }
 
     /// Calls `hit(t, cos θ)` for every triangle the object-space ray's segment

@@ -18,7 +18,7 @@ fn block_numbered_leaves_validate_and_hold_their_triangles() {
     // Every triangle is reached through exactly one leaf's blocks.
     let mut seen = vec![0u32; m.triangles.len()];
     for (first, count) in m.bvh.leaves() {
-        m.leaf_lanes(first, count, |_, own, prims| {
+        m.leaf_lanes::<true>(first, count, |_, own, prims| {
             for i in 0..LANES {
                 if own & 1 << i != 0 {
                     seen[prims[i] as usize] += 1;
