@@ -196,13 +196,28 @@ pub(super) fn nudge_lane(x: f32, dir: f32) -> f32 {
     f32::from_bits(if stays { bits } else { stepped })
 }
 
-/// [`crate::math::floor`], with plain selects.
+/// [`crate::math::floor`], bit for bit, in operations the lane loops
+/// vectorise: below 2^23 in magnitude, `(|x| + 2^23) − 2^23` is `|x|`
+/// rounded to the nearest integer, exactly; with `x`'s sign that is `y`,
+/// and `floor(x) = y − [y > x]`. (`math::floor` goes through a
+/// saturating conversion to `i32`, which the lane loops did not
+/// vectorise.) Integers, magnitudes from 2^23 on and NaN are `x` itself,
+/// as there.
 #[inline(always)]
 pub(super) fn floor_lane(x: f32) -> f32 {
-    let t = x as i32 as f32;
-    let down = t - f32::from(u8::from(t > x));
-    let keep = (t == x) | (x.abs() >= 8_388_608.0) | x.is_nan();
+    const BIG: f32 = 8_388_608.0;
+    let y = ((x.abs() + BIG) - BIG).copysign(x);
+    let down = if y > x { y - 1.0 } else { y };
+    let keep = (y == x) | (x.abs() >= BIG) | x.is_nan();
     if keep { x } else { down }
+}
+
+/// [`crate::scene::is_even`] with [`floor_lane`] and float comparisons
+/// only: the same answer, in a form the lane loops vectorise.
+#[inline(always)]
+pub(super) fn is_even_lane(cells: f32) -> bool {
+    // `cells·0` is ±0 where `cells` is finite, else NaN.
+    (cells * 0.0 == 0.0) & (floor_lane(cells * 0.5) * 2.0 == cells)
 }
 
 /// [`crate::shading::fresnel_dielectric`]: `(R, T)`, with selects for its
@@ -319,6 +334,7 @@ mod tests {
             .chain((0..=u32::MAX).step_by(7919).map(f32::from_bits))
         {
             assert!(same(floor_lane(x), floor(x)), "floor {x:e}");
+            assert_eq!(is_even_lane(x), crate::scene::is_even(x), "is_even {x:e}");
             for dir in [1.0, -1.0, 0.0, -0.0, f32::NAN] {
                 assert!(same(nudge_lane(x, dir), nudge(x, dir)), "nudge {x:e} {dir}");
             }
