@@ -424,31 +424,33 @@ impl Mesh {
         counters: &mut TraceCounters,
         out: &mut [Option<ShapeHit>],
     ) {
+        if self.blocks.is_empty() {
+            self.intersect_packet_in::<false>(rays, counters, out)
+        } else {
+            self.intersect_packet_in::<true>(rays, counters, out)
+        }
+    }
+
+    /// [`Mesh::intersect_packet`] with the leaves reached as `BLOCKS` says.
+    #[inline(always)]
+    fn intersect_packet_in<const BLOCKS: bool>(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraceCounters,
+        out: &mut [Option<ShapeHit>],
+    ) {
         assert!(rays.len() <= PACKET && out.len() == rays.len());
         let mut bary = [(0.0, 0.0); PACKET];
         let mut hits = [None; PACKET];
-        let hits_out = &mut hits[..rays.len()];
-        if self.blocks.is_empty() {
-            self.bvh.closest_packet(
-                rays,
-                &mut counters.bvh,
-                #[inline(always)]
-                |r, first, count, t_max| {
-                    self.leaf_closest::<false>(&rays[r], first, count, t_max, &mut bary[r])
-                },
-                hits_out,
-            );
-        } else {
-            self.bvh.closest_packet(
-                rays,
-                &mut counters.bvh,
-                #[inline(always)]
-                |r, first, count, t_max| {
-                    self.leaf_closest::<true>(&rays[r], first, count, t_max, &mut bary[r])
-                },
-                hits_out,
-            );
-        }
+        self.bvh.closest_packet(
+            rays,
+            &mut counters.bvh,
+            #[inline(always)]
+            |r, first, count, t_max| {
+                self.leaf_closest::<BLOCKS>(&rays[r], first, count, t_max, &mut bary[r])
+            },
+            &mut hits[..rays.len()],
+        );
         for (r, o) in out.iter_mut().enumerate() {
             *o = hits[r].map(|(prim, t)| ShapeHit {
                 t,
@@ -463,22 +465,27 @@ impl Mesh {
     /// ([`Bvh8::any_packet`]): the same answers.
     pub fn occludes_packet(&self, rays: &[Ray], counters: &mut TraceCounters, out: &mut [bool]) {
         if self.blocks.is_empty() {
-            self.bvh.any_packet(
-                rays,
-                &mut counters.bvh,
-                #[inline(always)]
-                |r, first, count| self.leaf_occludes::<false>(&rays[r], first, count),
-                out,
-            );
+            self.occludes_packet_in::<false>(rays, counters, out)
         } else {
-            self.bvh.any_packet(
-                rays,
-                &mut counters.bvh,
-                #[inline(always)]
-                |r, first, count| self.leaf_occludes::<true>(&rays[r], first, count),
-                out,
-            );
+            self.occludes_packet_in::<true>(rays, counters, out)
         }
+    }
+
+    /// [`Mesh::occludes_packet`] with the leaves reached as `BLOCKS` says.
+    #[inline(always)]
+    fn occludes_packet_in<const BLOCKS: bool>(
+        &self,
+        rays: &[Ray],
+        counters: &mut TraceCounters,
+        out: &mut [bool],
+    ) {
+        self.bvh.any_packet(
+            rays,
+            &mut counters.bvh,
+            #[inline(always)]
+            |r, first, count| self.leaf_occludes::<BLOCKS>(&rays[r], first, count),
+            out,
+        );
     }
 
     /// Whether the ray's segment meets one of a leaf's triangles.
@@ -535,20 +542,21 @@ impl Mesh {
     #[inline]
     pub fn occludes_object(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
         if self.blocks.is_empty() {
-            self.bvh.any_leaves(
-                ray,
-                &mut counters.bvh,
-                #[inline(always)]
-                |first, count| self.leaf_occludes::<false>(ray, first, count),
-            )
+            self.occludes_in::<false>(ray, counters)
         } else {
-            self.bvh.any_leaves(
-                ray,
-                &mut counters.bvh,
-                #[inline(always)]
-                |first, count| self.leaf_occludes::<true>(ray, first, count),
-            )
+            self.occludes_in::<true>(ray, counters)
         }
+    }
+
+    /// [`Mesh::occludes_object`] with the leaves reached as `BLOCKS` says.
+    #[inline(always)]
+    fn occludes_in<const BLOCKS: bool>(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
+        self.bvh.any_leaves(
+            ray,
+            &mut counters.bvh,
+            #[inline(always)]
+            |first, count| self.leaf_occludes::<BLOCKS>(ray, first, count),
+        )
     }
 
     /// Calls `hit(t, cos θ)` for every triangle the object-space ray's segment
