@@ -47,94 +47,17 @@ impl<const OCT: u32> Avx2Lanes<OCT> {
 }
 
 impl<const OCT: u32> Avx2Lanes<OCT> {
-    /// The entry distances and the mask of the children hit, as
-    /// [`super::PortableLanes::test`]'s fused test, operation for
-    /// operation (max and min return their second operand for NaN in
-    /// both).
+    /// The push of [`NodeVisit::visit`], from a node's slab tests
+    /// already made (`enter`, `hit` as [`Avx2Lanes::test`] or
+    /// [`test_root`] return them).
     #[inline(always)]
-    fn test(&self, n: &Bvh8Node, t_max: f32) -> (__m256, __m256) {
-        // SAFETY: an `Avx2Lanes` exists only where the CPU has AVX2 and
-        // FMA.
-        unsafe {
-            fused_test(
-                n,
-                (Self::NEAR, Self::FAR),
-                (&self.inv, &self.near_c, &self.far_c),
-                self.t_min,
-                t_max,
-            )
-        }
-    }
-}
-
-/// The eight fused slab tests of a node: the entry distances and the mask
-/// of the children hit within `[t_min, t_max]`, for near and far plane rows
-/// `rows` (constants in the kernels, known when compiling; chosen at run
-/// time by [`hits_a_child`]) and the ray's constants `(inv, near_c, far_c)`
-/// splatted. The caller makes sure that the CPU has AVX2 and FMA (this
-/// is inlined into callers compiled with them).
-#[inline(always)]
-unsafe fn fused_test(
-    n: &Bvh8Node,
-    (near_rows, far_rows): ([usize; 3], [usize; 3]),
-    (inv, near_c, far_c): (&[__m256; 3], &[__m256; 3], &[__m256; 3]),
-    t_min: __m256,
-    t_max: f32,
-) -> (__m256, __m256) {
-    // SAFETY (all): the CPU has AVX2 and FMA (the caller), and each row
-    // is 8 floats aligned to 32 bytes (`Lanes8`).
-    let lanes = |row: usize| unsafe { _mm256_load_ps(n.planes[row].0.as_ptr()) };
-    let near = |a: usize| unsafe { _mm256_fmsub_ps(lanes(near_rows[a]), inv[a], near_c[a]) };
-    let far = |a: usize| unsafe { _mm256_fmsub_ps(lanes(far_rows[a]), inv[a], far_c[a]) };
-    let (nx, ny, nz) = (near(0), near(1), near(2));
-    let (fx, fy, fz) = (far(0), far(1), far(2));
-    unsafe {
-        let enter = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, t_min));
-        let exit = _mm256_min_ps(
-            _mm256_min_ps(fx, fy),
-            _mm256_min_ps(fz, _mm256_set1_ps(t_max)),
-        );
-        (enter, _mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit))
-    }
-}
-
-/// Whether the ray's fused test takes any child of `n` within `[t_min,
-/// t_max]` (`t_max` as the kernels' visits take it, widened by
-/// [`WIDEN`]): the same tests, operation for operation, as a kernel's
-/// visit of `n`, with the near and far planes chosen by the ray's octant
-/// at run time. Lets a ray that misses every child of the root leave
-/// before the kernel's setup. The caller makes sure that the CPU has AVX2
-/// and FMA and that the ray takes the fused test.
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-pub(super) fn hits_a_child(n: &Bvh8Node, r: &RaySetup, t_max: f32) -> bool {
-    let near_rows: [usize; 3] = std::array::from_fn(|a| a + 3 * (r.octant >> a & 1 == 0) as usize);
-    let far_rows = near_rows.map(|row| (row + 3) % 6);
-    let splat = |v: crate::math::Vec3| [0, 1, 2].map(|a| _mm256_set1_ps(v[a]));
-    // SAFETY: the CPU has AVX2 and FMA (this function's features).
-    let (_, hit) = unsafe {
-        fused_test(
-            n,
-            (near_rows, far_rows),
-            (&splat(r.inv), &splat(r.near_c), &splat(r.far_c)),
-            _mm256_set1_ps(r.t_min),
-            t_max * WIDEN,
-        )
-    };
-    _mm256_movemask_ps(hit) != 0
-}
-
-impl<const OCT: u32> NodeVisit for Avx2Lanes<OCT> {
-    #[inline(always)]
-    fn bound(&self, t_max: f32) -> f32 {
-        t_max * WIDEN
-    }
-
-    /// As [`super::PortableLanes`]'s: the same entries pushed in the
-    /// same order. Inlined into the callers compiled with AVX2 enabled.
-    #[inline(always)]
-    fn visit(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> Option<u32> {
-        let (enter, hit) = self.test(n, t_max);
+    pub(super) fn push(
+        &self,
+        n: &Bvh8Node,
+        enter: __m256,
+        hit: __m256,
+        stack: &mut Stack,
+    ) -> Option<u32> {
         // SAFETY (all): AVX2 as in `test`; `child` and `order` are 8
         // u32 each, and the stack has room for 8 more entries (checked).
         unsafe {
@@ -174,10 +97,118 @@ impl<const OCT: u32> NodeVisit for Avx2Lanes<OCT> {
         }
     }
 
+    /// The entry distances and the mask of the children hit, as
+    /// [`super::PortableLanes::test`]'s fused test, operation for
+    /// operation (max and min return their second operand for NaN in
+    /// both).
+    #[inline(always)]
+    fn test(&self, n: &Bvh8Node, t_max: f32) -> (__m256, __m256) {
+        // SAFETY: an `Avx2Lanes` exists only where the CPU has AVX2 and
+        // FMA.
+        unsafe {
+            fused_test(
+                n,
+                (Self::NEAR, Self::FAR),
+                (&self.inv, &self.near_c, &self.far_c),
+                self.t_min,
+                t_max,
+            )
+        }
+    }
+}
+
+/// The eight fused slab tests of a node: the entry distances and the mask
+/// of the children hit within `[t_min, t_max]`, for near and far plane rows
+/// `rows` (constants in the kernels, known when compiling; chosen at run
+/// time by [`test_root`]) and the ray's constants `(inv, near_c, far_c)`
+/// splatted. The caller makes sure that the CPU has AVX2 and FMA (this
+/// is inlined into callers compiled with them).
+#[inline(always)]
+unsafe fn fused_test(
+    n: &Bvh8Node,
+    (near_rows, far_rows): ([usize; 3], [usize; 3]),
+    (inv, near_c, far_c): (&[__m256; 3], &[__m256; 3], &[__m256; 3]),
+    t_min: __m256,
+    t_max: f32,
+) -> (__m256, __m256) {
+    // SAFETY (all): the CPU has AVX2 and FMA (the caller), and each row
+    // is 8 floats aligned to 32 bytes (`Lanes8`).
+    let lanes = |row: usize| unsafe { _mm256_load_ps(n.planes[row].0.as_ptr()) };
+    let near = |a: usize| unsafe { _mm256_fmsub_ps(lanes(near_rows[a]), inv[a], near_c[a]) };
+    let far = |a: usize| unsafe { _mm256_fmsub_ps(lanes(far_rows[a]), inv[a], far_c[a]) };
+    let (nx, ny, nz) = (near(0), near(1), near(2));
+    let (fx, fy, fz) = (far(0), far(1), far(2));
+    unsafe {
+        let enter = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, t_min));
+        let exit = _mm256_min_ps(
+            _mm256_min_ps(fx, fy),
+            _mm256_min_ps(fz, _mm256_set1_ps(t_max)),
+        );
+        (enter, _mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit))
+    }
+}
+
+/// The slab tests of the root `n` (entry distances and hit lanes) for the
+/// ray's fused test, with `t_max` as the kernels' visits take it (widened
+/// by [`WIDEN`]): the same tests, operation for operation, as a kernel's
+/// visit of `n`, with the near and far planes chosen by the ray's octant
+/// at run time. The per-ray entry makes them before choosing the kernel
+/// for the octant, so that a ray that misses every child of the root
+/// leaves at once, and the kernel starts from them without testing the
+/// root again. The caller makes sure that the CPU has AVX2 and FMA and
+/// that the ray takes the fused test.
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+pub(super) fn test_root(n: &Bvh8Node, r: &RaySetup, t_max: f32) -> RootTest {
+    let near_rows: [usize; 3] = std::array::from_fn(|a| a + 3 * (r.octant >> a & 1 == 0) as usize);
+    let far_rows = near_rows.map(|row| (row + 3) % 6);
+    let splat = |v: crate::math::Vec3| [0, 1, 2].map(|a| _mm256_set1_ps(v[a]));
+    // SAFETY: the CPU has AVX2 and FMA (this function's features).
+    let (enter, hit) = unsafe {
+        fused_test(
+            n,
+            (near_rows, far_rows),
+            (&splat(r.inv), &splat(r.near_c), &splat(r.far_c)),
+            _mm256_set1_ps(r.t_min),
+            t_max * WIDEN,
+        )
+    };
+    RootTest { enter, hit }
+}
+
+/// What [`test_root`] found: the entry distances and the hit lanes.
+pub(super) struct RootTest {
+    pub(super) enter: __m256,
+    pub(super) hit: __m256,
+}
+
+impl RootTest {
+    /// Whether any child of the root is hit.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn any(&self) -> bool {
+        _mm256_movemask_ps(self.hit) != 0
+    }
+}
+
+impl<const OCT: u32> NodeVisit for Avx2Lanes<OCT> {
+    #[inline(always)]
+    fn bound(&self, t_max: f32) -> f32 {
+        t_max * WIDEN
+    }
+
+    /// As [`super::PortableLanes`]'s: the same entries pushed in the
+    /// same order. Inlined into the callers compiled with AVX2 enabled.
+    #[inline(always)]
+    fn visit(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> Option<u32> {
+        let (enter, hit) = self.test(n, t_max);
+        self.push(n, enter, hit, stack)
+    }
+
     #[inline(always)]
     fn visit_any(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> (Option<u32>, u32) {
         let (_, hit) = self.test(n, t_max);
-        // SAFETY (all): as in `visit`.
+        // SAFETY (all): as in `push`.
         unsafe {
             // The sign bit marks leaves (and EMPTY, never hit).
             let child = _mm256_loadu_si256(n.child.as_ptr().cast());
