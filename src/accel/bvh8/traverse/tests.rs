@@ -4,7 +4,7 @@
 use super::*;
 use crate::accel::bvh::Bvh;
 use crate::accel::bvh8::EMPTY;
-use crate::math::Aabb;
+use crate::math::{Aabb, Vec3};
 use crate::render::Pcg32;
 
 thread_local! {
