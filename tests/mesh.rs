@@ -27,7 +27,7 @@ fn brute_force(m: &Mesh, ray: &Ray) -> Option<(f32, u32)> {
     for (i, t) in m.triangles.iter().enumerate() {
         let [a, b, c] = t.map(|k| Vec3::from(m.positions[k as usize]));
         let t_max = best.map_or(ray.t_max, |b| b.0);
-        if let Some(h) = intersect_mt(ray.o, ray.d, a, b, c, ray.t_min, t_max) {
+        if let Some((h, _)) = intersect_watertight(ray.o, ray.d, a, b, c, ray.t_min, t_max) {
             best = Some((h.t, i as u32));
         }
     }
@@ -85,8 +85,8 @@ fn bvh_matches_brute_force_over_100k_rays() {
                                 // A tie at a shared edge: both triangles give this t.
                                 let [a, b, cc] = m.triangles[g.1 as usize]
                                     .map(|x| Vec3::from(m.positions[x as usize]));
-                                intersect_mt(ray.o, ray.d, a, b, cc, 0.0, f32::INFINITY)
-                                    .map(|h| h.t)
+                                intersect_watertight(ray.o, ray.d, a, b, cc, 0.0, f32::INFINITY)
+                                    .map(|h| h.0.t)
                                     == Some(w.0)
                             })
                     }
@@ -660,8 +660,9 @@ fn packets_match_single_rays() {
                         if g.prim != w.prim {
                             let [a, b, cc] = m.triangles[g.prim as usize]
                                 .map(|x| Vec3::from(m.positions[x as usize]));
-                            let t = intersect_mt(ray.o, ray.d, a, b, cc, ray.t_min, ray.t_max);
-                            assert_eq!(t.map(|h| h.t), Some(w.t), "mesh {k}, packet {p}");
+                            let t =
+                                intersect_watertight(ray.o, ray.d, a, b, cc, ray.t_min, ray.t_max);
+                            assert_eq!(t.map(|h| h.0.t), Some(w.t), "mesh {k}, packet {p}");
                         } else {
                             assert_eq!((g.u, g.v), (w.u, w.v), "mesh {k}, packet {p}");
                         }

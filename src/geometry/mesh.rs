@@ -1,7 +1,9 @@
 //! Triangle meshes: flat arrays owned by the mesh, indexed by its own BVH;
 //! instances (a shared mesh plus a transform) are in `mesh/instance.rs`.
 
-use super::triangle::{LANES, TriangleLanes, intersect_mt_lanes, intersect_watertight};
+use super::triangle::{
+    LANES, RayShear, TriangleLanes, intersect_watertight, intersect_watertight_lanes,
+};
 use super::{ShapeHit, SurfacePoint, TraceCounters};
 use crate::accel::{Bvh, Bvh8, MAX_PRIMITIVES, PACKET, PrimRef};
 use crate::math::{Aabb, Ray, Vec3, gamma, normalize_robust, triangle_normal};
@@ -382,7 +384,8 @@ impl Mesh {
     }
 
     /// Closest hit of an object-space ray: `(prim, t, b1, b2)`. Triangles
-    /// are tested four at a time ([`intersect_mt_lanes`]).
+    /// are tested four at a time with the watertight test
+    /// ([`intersect_watertight_lanes`]).
     #[inline]
     pub fn intersect_object(&self, ray: &Ray, counters: &mut TraceCounters) -> Option<ShapeHit> {
         if self.blocks.is_empty() {
@@ -401,11 +404,16 @@ impl Mesh {
         counters: &mut TraceCounters,
     ) -> Option<ShapeHit> {
         let mut bary = (0.0, 0.0);
+        // Made at the first leaf: most rays past a mesh reach none.
+        let mut shear = None;
         let (prim, t) = self.bvh.closest_leaves(
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |first, count, t_max| self.leaf_closest::<BLOCKS>(ray, first, count, t_max, &mut bary),
+            |first, count, t_max| {
+                let shear = shear.get_or_insert_with(|| RayShear::new(ray.o, ray.d));
+                self.leaf_closest::<BLOCKS>(shear, ray.t_min, first, count, t_max, &mut bary)
+            },
         )?;
         Some(ShapeHit {
             t,
@@ -442,12 +450,17 @@ impl Mesh {
         assert!(rays.len() <= PACKET && out.len() == rays.len());
         let mut bary = [(0.0, 0.0); PACKET];
         let mut hits = [None; PACKET];
+        let shears: [RayShear; PACKET] = std::array::from_fn(|r| {
+            let ray = rays.get(r).unwrap_or(&rays[0]);
+            RayShear::new(ray.o, ray.d)
+        });
         self.bvh.closest_packet(
             rays,
             &mut counters.bvh,
             #[inline(always)]
             |r, first, count, t_max| {
-                self.leaf_closest::<BLOCKS>(&rays[r], first, count, t_max, &mut bary[r])
+                let t_min = rays[r].t_min;
+                self.leaf_closest::<BLOCKS>(&shears[r], t_min, first, count, t_max, &mut bary[r])
             },
             &mut hits[..rays.len()],
         );
@@ -479,24 +492,34 @@ impl Mesh {
         counters: &mut TraceCounters,
         out: &mut [bool],
     ) {
+        let shears: [RayShear; PACKET] = std::array::from_fn(|r| {
+            let ray = rays.get(r).unwrap_or(&rays[0]);
+            RayShear::new(ray.o, ray.d)
+        });
         self.bvh.any_packet(
             rays,
             &mut counters.bvh,
             #[inline(always)]
-            |r, first, count| self.leaf_occludes::<BLOCKS>(&rays[r], first, count),
+            |r, first, count| self.leaf_occludes::<BLOCKS>(&shears[r], &rays[r], first, count),
             out,
         );
     }
 
     /// Whether the ray's segment meets one of a leaf's triangles.
     #[inline(always)]
-    fn leaf_occludes<const BLOCKS: bool>(&self, ray: &Ray, first: u32, count: u32) -> bool {
+    fn leaf_occludes<const BLOCKS: bool>(
+        &self,
+        shear: &RayShear,
+        ray: &Ray,
+        first: u32,
+        count: u32,
+    ) -> bool {
         self.leaf_lanes::<BLOCKS>(
             first,
             count,
             #[inline(always)]
             |lanes, own, _| {
-                let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, ray.t_max);
+                let h = intersect_watertight_lanes(shear, lanes, ray.t_min, ray.t_max);
                 h.mask & own != 0
             },
         )
@@ -507,7 +530,8 @@ impl Mesh {
     #[inline(always)]
     fn leaf_closest<const BLOCKS: bool>(
         &self,
-        ray: &Ray,
+        shear: &RayShear,
+        t_min: f32,
         first: u32,
         count: u32,
         mut t_max: f32,
@@ -519,7 +543,7 @@ impl Mesh {
             count,
             #[inline(always)]
             |lanes, own, prims| {
-                let h = intersect_mt_lanes(ray.o, ray.d, lanes, ray.t_min, t_max);
+                let h = intersect_watertight_lanes(shear, lanes, t_min, t_max);
                 // The nearest lane, the first of equals (spare lanes are
                 // masked off).
                 let mut bits = h.mask & own;
@@ -551,11 +575,12 @@ impl Mesh {
     /// [`Mesh::occludes_object`] with the leaves reached as `BLOCKS` says.
     #[inline(always)]
     fn occludes_in<const BLOCKS: bool>(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
+        let shear = RayShear::new(ray.o, ray.d);
         self.bvh.any_leaves(
             ray,
             &mut counters.bvh,
             #[inline(always)]
-            |first, count| self.leaf_occludes::<BLOCKS>(ray, first, count),
+            |first, count| self.leaf_occludes::<BLOCKS>(&shear, ray, first, count),
         )
     }
 

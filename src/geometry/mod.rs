@@ -21,8 +21,8 @@ pub use mesh::{LEAF_BLOCK_TRIANGLES, Mesh, MeshDataError, MeshInstance};
 pub use plane::Plane;
 pub use sphere::Sphere;
 pub use triangle::{
-    LANES, LaneHits, TriangleHit, TriangleLanes, intersect_mt, intersect_mt_lanes,
-    intersect_watertight,
+    LANES, LaneHits, RayShear, TriangleHit, TriangleLanes, intersect_mt, intersect_watertight,
+    intersect_watertight_lanes,
 };
 
 use crate::accel::TraversalCounters;
