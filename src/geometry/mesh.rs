@@ -79,6 +79,16 @@ pub enum MeshDataError {
     },
 }
 
+/// The [`RayShear`] of each ray of a packet (spare slots get a fixed,
+/// unused one).
+#[inline(always)]
+fn packet_shears(rays: &[Ray]) -> [RayShear; PACKET] {
+    std::array::from_fn(|r| match rays.get(r) {
+        Some(ray) => RayShear::new(ray.o, ray.d),
+        None => RayShear::new(Vec3::ZERO, Vec3::Z),
+    })
+}
+
 impl Mesh {
     /// Checks the arrays, builds the BVH (binned SAH, in parallel) and
     /// reorders the triangles into its leaf order. `normals` and `uvs` are
@@ -450,10 +460,7 @@ impl Mesh {
         assert!(rays.len() <= PACKET && out.len() == rays.len());
         let mut bary = [(0.0, 0.0); PACKET];
         let mut hits = [None; PACKET];
-        let shears: [RayShear; PACKET] = std::array::from_fn(|r| {
-            let ray = rays.get(r).unwrap_or(&rays[0]);
-            RayShear::new(ray.o, ray.d)
-        });
+        let shears = packet_shears(rays);
         self.bvh.closest_packet(
             rays,
             &mut counters.bvh,
@@ -492,10 +499,7 @@ impl Mesh {
         counters: &mut TraceCounters,
         out: &mut [bool],
     ) {
-        let shears: [RayShear; PACKET] = std::array::from_fn(|r| {
-            let ray = rays.get(r).unwrap_or(&rays[0]);
-            RayShear::new(ray.o, ray.d)
-        });
+        let shears = packet_shears(rays);
         self.bvh.any_packet(
             rays,
             &mut counters.bvh,
