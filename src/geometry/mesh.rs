@@ -49,6 +49,23 @@ pub struct Mesh {
     face_normals: Vec<Vec3>,
 }
 
+/// For each mask of four lanes, 1 in the lanes set and 0 in the others (a
+/// compare turns it into a lane mask).
+const LANE_SET: [Vec4; 1 << LANES] = {
+    let mut table = [Vec4::ZERO; 1 << LANES];
+    let mut m = 0;
+    while m < 1 << LANES {
+        table[m] = Vec4::new(
+            (m & 1) as f32,
+            (m >> 1 & 1) as f32,
+            (m >> 2 & 1) as f32,
+            (m >> 3 & 1) as f32,
+        );
+        m += 1;
+    }
+    table
+};
+
 /// Meshes up to this many triangles keep their leaves' triangles in blocks
 /// (about 50 bytes per triangle besides the 52 of vertices, indices and
 /// BVH: at most about 420 MB a mesh); larger ones gather their vertices.
@@ -306,13 +323,21 @@ impl Mesh {
         }
     }
 
-    /// Calls `visit(lanes, own, prims)` for the `count` triangles of the
+    /// Calls `visit(lanes, own, base)` for the `count` triangles of the
     /// leaf whose BVH word holds `first` (see [`Mesh::leaf_triangles`]),
-    /// four at a time: lane `i` holds triangle `prims[i]` where bit `i` of
-    /// `own` is set. Stops when `visit` returns true, and returns whether
-    /// it did. Small meshes take the lanes from [`Mesh::lanes`], larger
-    /// ones from [`Mesh::blocks`] where they keep them, else gather the
-    /// vertices.
+    /// four at a time: lane `i` holds triangle `base + i` where bit `i` of
+    /// `own` is set, and a lane whose bit is clear holds a triangle that
+    /// is not the leaf's: the visit must ignore it. Stops when `visit`
+    /// returns true, and returns whether it did. Small meshes take the
+    /// lanes from [`Mesh::lanes`], larger ones from [`Mesh::blocks`] where
+    /// they keep them, else gather the vertices.
+    ///
+    /// The spare lanes of a block or of gathered lanes repeat lane 0, the
+    /// same triangle bit for bit: they hit where lane 0 does, at the same
+    /// `t`, so they are handed over as the block's own (all bits set), and
+    /// the visits' "first of equals" picks lane 0 over them. Only the lanes
+    /// of small meshes, which run on into the next leaf's triangles, are
+    /// masked.
     ///
     /// `BLOCKS` says whether the mesh keeps blocks; the callers choose it
     /// once per ray (or packet), outside the traversal, so that a kernel
@@ -324,50 +349,42 @@ impl Mesh {
         &self,
         first: u32,
         count: u32,
-        mut visit: impl FnMut(&TriangleLanes, u32, &[u32; LANES]) -> bool,
+        mut visit: impl FnMut(&TriangleLanes, u32, u32) -> bool,
     ) -> bool {
         debug_assert_eq!(BLOCKS, !self.blocks.is_empty());
+        const ALL: u32 = (1 << LANES) - 1;
         let blocks = count.div_ceil(LANES as u32);
-        let own = |j: u32| {
-            let left = count - j * LANES as u32;
-            if left >= LANES as u32 {
-                (1u32 << LANES) - 1
-            } else {
-                (1u32 << left) - 1
-            }
-        };
         if BLOCKS {
             // `first` is the leaf's first block.
             let leaf = &self.blocks[first as usize..(first + blocks) as usize];
-            for (j, lanes) in (first..).zip(leaf) {
-                let base = self.block_first[j as usize];
-                if visit(
-                    lanes,
-                    own(j - first),
-                    &std::array::from_fn(|i| base + i as u32),
-                ) {
+            let bases = &self.block_first[first as usize..(first + blocks) as usize];
+            for (lanes, &base) in leaf.iter().zip(bases) {
+                if visit(lanes, ALL, base) {
                     return true;
                 }
             }
             return false;
         }
-        let prims = |j: u32| {
-            let base = first + j * LANES as u32;
-            std::array::from_fn(|i| base + i as u32)
-        };
         if !self.lanes.is_empty() {
             for j in 0..blocks {
-                let p = prims(j);
-                if visit(&self.lanes[p[0] as usize], own(j), &p) {
+                let base = first + j * LANES as u32;
+                let left = count - j * LANES as u32;
+                let own = if left >= LANES as u32 {
+                    ALL
+                } else {
+                    (1u32 << left) - 1
+                };
+                if visit(&self.lanes[base as usize], own, base) {
                     return true;
                 }
             }
             return false;
         }
         for j in 0..blocks {
-            let p = prims(j);
-            let n = own(j).count_ones() as usize;
-            if visit(&self.gather(&p[..n]), own(j), &p) {
+            let base = first + j * LANES as u32;
+            let n = (count - j * LANES as u32).min(LANES as u32);
+            let prims: [u32; LANES] = std::array::from_fn(|i| base + i as u32);
+            if visit(&self.gather(&prims[..n as usize]), ALL, base) {
                 return true;
             }
         }
@@ -546,19 +563,21 @@ impl Mesh {
             first,
             count,
             #[inline(always)]
-            |lanes, own, prims| {
+            |lanes, own, base| {
                 let h = intersect_watertight_lanes(shear, lanes, t_min, t_max);
-                // The nearest lane, the first of equals (spare lanes are
-                // masked off).
-                let mut bits = h.mask & own;
-                while bits != 0 {
-                    let i = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    if h.t[i] < t_max {
-                        t_max = h.t[i];
-                        *bary = (h.b1[i], h.b2[i]);
-                        best = Some((prims[i], t_max));
-                    }
+                // Every lane hit is nearer than `t_max`; the nearest, the
+                // first of equals, found in registers: the least `t` of
+                // the lanes hit, then the first lane that has it.
+                let mask = h.mask & own;
+                if mask != 0 {
+                    let hit = LANE_SET[mask as usize].cmpne(Vec4::ZERO);
+                    let t = Vec4::select(hit, h.t, Vec4::INFINITY);
+                    let near = t.min_element();
+                    let i = t.cmpeq(Vec4::splat(near)).bitmask().trailing_zeros();
+                    let (b1, b2) = (h.b1.to_array(), h.b2.to_array());
+                    t_max = near;
+                    *bary = (b1[i as usize], b2[i as usize]);
+                    best = Some((base + i, t_max));
                 }
                 false
             },

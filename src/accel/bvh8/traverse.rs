@@ -397,8 +397,17 @@ impl Bvh8 {
         }
         #[cfg(target_arch = "x86_64")]
         if has_avx2() {
-            // SAFETY: the CPU has AVX2 and FMA (`has_avx2`).
-            return unsafe { self.closest_entry_avx2(ray, counters, test) };
+            // The octant by the signs of the direction, as in `any_leaves`.
+            let octant = !ray.d.is_negative_bitmask() & 7;
+            // SAFETY (all): the CPU has AVX2 and FMA (`has_avx2`), and
+            // AVX-512F and VL where `has_avx512vl`.
+            return unsafe {
+                if has_avx512vl() {
+                    by_octant!(octant, OCT => self.closest_entry::<OCT, true>(ray, counters, test))
+                } else {
+                    by_octant!(octant, OCT => self.closest_entry::<OCT, false>(ray, counters, test))
+                }
+            };
         }
         self.closest_portable(ray, counters, test)
     }
@@ -416,41 +425,42 @@ impl Bvh8 {
         self.closest_with(ray.t_max, counters, test, &PortableLanes::new(&setup))
     }
 
-    /// The per-ray entry where the CPU has AVX2 and FMA: the setup, then
-    /// the root's eight slab tests ([`avx2::test_root`]); a ray that
-    /// misses them all (most camera rays past a mesh) returns here, having
-    /// visited one node as the kernel would, without the kernel's setup
-    /// and frame. The others go on to the kernel compiled for their
-    /// octant, which starts from these tests rather than making them
-    /// again (camera rays 1–3 % faster on igea and the icosphere, one
-    /// thread each, both builds at once). Rays that cannot take the fused
-    /// test take the portable path.
+    /// The per-ray entry where the CPU has AVX2 and FMA, compiled for
+    /// the rays of octant `OCT`: the setup, then the root's eight slab
+    /// tests ([`avx2::Avx2Lanes::test_root`]); a ray that misses them all
+    /// (most camera rays past a mesh) returns here, having visited one
+    /// node as the kernel would, without the kernel's frame. The others go
+    /// on to the kernel (the AVX-512VL copy where `WIDE`), which starts
+    /// from these tests rather than making them again. Each octant has its
+    /// own entry, so that the near and far planes of the root's test are
+    /// known when compiling, as in the kernels. Rays that cannot take the
+    /// fused test, or whose setup names another octant, take the portable
+    /// path.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
-    fn closest_entry_avx2(
+    fn closest_entry<const OCT: u32, const WIDE: bool>(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
         test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         let setup = RaySetup::new(ray, &self.root());
-        if !setup.fused {
+        if !setup.fused || setup.octant != OCT {
             return self.closest_portable(ray, counters, test);
         }
-        let root = avx2::test_root(&self.nodes[0], &setup, ray.t_max);
+        // The ray is of octant `OCT` and takes the fused test.
+        let lanes = avx2::Avx2Lanes::<OCT>::new(&setup);
+        let root = lanes.test_root(&self.nodes[0], ray.t_max);
         if !root.any() {
             counters.nodes_visited += 1;
             return None;
         }
-        // SAFETY (all): the CPU has AVX2 and FMA, and AVX-512F and VL
-        // where `has_avx512vl`; the octant is the ray's, and the ray takes
-        // the fused test.
-        if has_avx512vl() {
-            unsafe {
-                by_octant!(setup.octant, OCT => self.closest_avx512::<OCT>(&setup, &root, ray.t_max, counters, test))
-            }
+        if WIDE {
+            // SAFETY: the caller chose `WIDE` where the CPU has AVX-512F
+            // and VL.
+            unsafe { self.closest_avx512::<OCT>(&lanes, &root, ray.t_max, counters, test) }
         } else {
-            by_octant!(setup.octant, OCT => self.closest_avx2::<OCT>(&setup, &root, ray.t_max, counters, test))
+            self.closest_avx2::<OCT>(&lanes, &root, ray.t_max, counters, test)
         }
     }
 
@@ -459,13 +469,13 @@ impl Bvh8 {
     #[inline(never)]
     fn closest_avx2<const OCT: u32>(
         &self,
-        setup: &RaySetup,
+        lanes: &avx2::Avx2Lanes<OCT>,
         root: &avx2::RootTest,
         t_max: f32,
         counters: &mut TraversalCounters,
         test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
-        self.closest_from_root::<OCT>(setup, root, t_max, counters, test)
+        self.closest_from_root::<OCT>(lanes, root, t_max, counters, test)
     }
 
     /// [`Bvh8::closest_avx2`] compiled for AVX-512VL as well, as
@@ -479,30 +489,29 @@ impl Bvh8 {
     #[inline(never)]
     fn closest_avx512<const OCT: u32>(
         &self,
-        setup: &RaySetup,
+        lanes: &avx2::Avx2Lanes<OCT>,
         root: &avx2::RootTest,
         t_max: f32,
         counters: &mut TraversalCounters,
         test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
-        self.closest_from_root::<OCT>(setup, root, t_max, counters, test)
+        self.closest_from_root::<OCT>(lanes, root, t_max, counters, test)
     }
 
     /// The kernels' body: the closest-hit traversal from the root's tests
-    /// made by the entry ([`avx2::test_root`]), which are not made again.
+    /// made by the entry ([`avx2::Avx2Lanes::test_root`]), which are not
+    /// made again.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     fn closest_from_root<const OCT: u32>(
         &self,
-        setup: &RaySetup,
+        lanes: &avx2::Avx2Lanes<OCT>,
         root: &avx2::RootTest,
         t_max: f32,
         counters: &mut TraversalCounters,
         test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
-        // SAFETY: the callers are compiled for AVX2 and FMA, which the CPU
-        // has; the ray is of octant `OCT` and takes the fused test.
-        let lanes = unsafe { avx2::Avx2Lanes::<OCT>::new(setup) };
+        let lanes = *lanes;
         let mut stack = Stack::new();
         let first = lanes.push(&self.nodes[0], root.enter, root.hit, &mut stack);
         self.closest_after(t_max, counters, test, &lanes, stack, first)

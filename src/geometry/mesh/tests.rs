@@ -11,17 +11,31 @@ fn blocked() -> Mesh {
     m
 }
 
+/// The three vertices of lane `i`.
+fn tri_lane(lanes: &TriangleLanes, i: usize) -> [[f32; 3]; 3] {
+    std::array::from_fn(|j| std::array::from_fn(|a| lanes.v[j][a][i]))
+}
+
 #[test]
 fn block_numbered_leaves_validate_and_hold_their_triangles() {
     let m = blocked();
     assert_eq!(m.validate_bvh(), Ok(()));
-    // Every triangle is reached through exactly one leaf's blocks.
+    // Every triangle is reached through exactly one leaf's blocks, and
+    // the spare lanes of a leaf's last block repeat its lane 0 bit for bit
+    // (the closest-hit visit relies on it).
     let mut seen = vec![0u32; m.triangles.len()];
     for (first, count) in m.bvh.leaves() {
-        m.leaf_lanes::<true>(first, count, |_, own, prims| {
+        let mut j = 0;
+        m.leaf_lanes::<true>(first, count, |lanes, own, base| {
+            let real = (count - j * LANES as u32).min(LANES as u32) as usize;
+            j += 1;
             for i in 0..LANES {
-                if own & 1 << i != 0 {
-                    seen[prims[i] as usize] += 1;
+                assert!(own & 1 << i != 0);
+                if i < real {
+                    seen[(base + i as u32) as usize] += 1;
+                } else {
+                    let lane = |i: usize| tri_lane(lanes, i).map(|v| v.map(f32::to_bits));
+                    assert_eq!(lane(i), lane(0), "spare lane {i}");
                 }
             }
             false

@@ -9,6 +9,7 @@ use std::arch::x86_64::*;
 /// that take the fused test ([`RaySetup::fused`]), of octant `OCT` (as
 /// [`RaySetup::octant`]), whose near and far planes are then known when
 /// compiling.
+#[derive(Clone, Copy)]
 pub(super) struct Avx2Lanes<const OCT: u32> {
     inv: [__m256; 3],
     near_c: [__m256; 3],
@@ -49,7 +50,7 @@ impl<const OCT: u32> Avx2Lanes<OCT> {
 impl<const OCT: u32> Avx2Lanes<OCT> {
     /// The push of [`NodeVisit::visit`], from a node's slab tests
     /// already made (`enter`, `hit` as [`Avx2Lanes::test`] or
-    /// [`test_root`] return them).
+    /// [`Avx2Lanes::test_root`] return them).
     #[inline(always)]
     pub(super) fn push(
         &self,
@@ -97,6 +98,17 @@ impl<const OCT: u32> Avx2Lanes<OCT> {
         }
     }
 
+    /// The slab tests of the root `n` for the interval ending at `t_max`
+    /// (widened here as the kernels' visits take it): the same tests as a
+    /// kernel's visit of `n`. The per-ray entry makes them, so that a ray
+    /// that misses every child of the root leaves at once, and the kernel
+    /// starts from them without testing the root again.
+    #[inline(always)]
+    pub(super) fn test_root(&self, n: &Bvh8Node, t_max: f32) -> RootTest {
+        let (enter, hit) = self.test(n, self.bound(t_max));
+        RootTest { enter, hit }
+    }
+
     /// The entry distances and the mask of the children hit, as
     /// [`super::PortableLanes::test`]'s fused test, operation for
     /// operation (max and min return their second operand for NaN in
@@ -119,8 +131,7 @@ impl<const OCT: u32> Avx2Lanes<OCT> {
 
 /// The eight fused slab tests of a node: the entry distances and the mask
 /// of the children hit within `[t_min, t_max]`, for near and far plane rows
-/// `rows` (constants in the kernels, known when compiling; chosen at run
-/// time by [`test_root`]) and the ray's constants `(inv, near_c, far_c)`
+/// `rows` (constants, known when compiling the kernel of an octant) and the ray's constants `(inv, near_c, far_c)`
 /// splatted. The caller makes sure that the CPU has AVX2 and FMA (this
 /// is inlined into callers compiled with them).
 #[inline(always)]
@@ -148,35 +159,7 @@ unsafe fn fused_test(
     }
 }
 
-/// The slab tests of the root `n` (entry distances and hit lanes) for the
-/// ray's fused test, with `t_max` as the kernels' visits take it (widened
-/// by [`WIDEN`]): the same tests, operation for operation, as a kernel's
-/// visit of `n`, with the near and far planes chosen by the ray's octant
-/// at run time. The per-ray entry makes them before choosing the kernel
-/// for the octant, so that a ray that misses every child of the root
-/// leaves at once, and the kernel starts from them without testing the
-/// root again. The caller makes sure that the CPU has AVX2 and FMA and
-/// that the ray takes the fused test.
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-pub(super) fn test_root(n: &Bvh8Node, r: &RaySetup, t_max: f32) -> RootTest {
-    let near_rows: [usize; 3] = std::array::from_fn(|a| a + 3 * (r.octant >> a & 1 == 0) as usize);
-    let far_rows = near_rows.map(|row| (row + 3) % 6);
-    let splat = |v: crate::math::Vec3| [0, 1, 2].map(|a| _mm256_set1_ps(v[a]));
-    // SAFETY: the CPU has AVX2 and FMA (this function's features).
-    let (enter, hit) = unsafe {
-        fused_test(
-            n,
-            (near_rows, far_rows),
-            (&splat(r.inv), &splat(r.near_c), &splat(r.far_c)),
-            _mm256_set1_ps(r.t_min),
-            t_max * WIDEN,
-        )
-    };
-    RootTest { enter, hit }
-}
-
-/// What [`test_root`] found: the entry distances and the hit lanes.
+/// What [`Avx2Lanes::test_root`] found: the entry distances and the hit lanes.
 pub(super) struct RootTest {
     pub(super) enter: __m256,
     pub(super) hit: __m256,
