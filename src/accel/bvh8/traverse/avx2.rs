@@ -131,8 +131,8 @@ impl<const OCT: u32> Avx2Lanes<OCT> {
 
 /// The eight fused slab tests of a node: the entry distances and the mask
 /// of the children hit within `[t_min, t_max]`, for near and far plane rows
-/// `rows` (constants, known when compiling the kernel of an octant) and the ray's constants `(inv, near_c, far_c)`
-/// splatted. The caller makes sure that the CPU has AVX2 and FMA (this
+/// `rows` (constants, known when compiling the kernel of an octant) and
+/// the ray's constants `(inv, near_c, far_c)` splatted. The caller makes sure that the CPU has AVX2 and FMA (this
 /// is inlined into callers compiled with them).
 #[inline(always)]
 unsafe fn fused_test(
