@@ -431,14 +431,13 @@ impl Mesh {
         counters: &mut TraceCounters,
     ) -> Option<ShapeHit> {
         let mut bary = (0.0, 0.0);
-        // Made at the first leaf: most rays past a mesh reach none.
-        let mut shear = None;
-        let (prim, t) = self.bvh.closest_leaves(
+        // Made once the ray enters the tree: most rays past a mesh do not.
+        let (prim, t) = self.bvh.closest_leaves_with(
             ray,
             &mut counters.bvh,
+            || RayShear::new(ray.o, ray.d),
             #[inline(always)]
-            |first, count, t_max| {
-                let shear = shear.get_or_insert_with(|| RayShear::new(ray.o, ray.d));
+            |shear, first, count, t_max| {
                 self.leaf_closest::<BLOCKS>(shear, ray.t_min, first, count, t_max, &mut bary)
             },
         )?;

@@ -156,6 +156,30 @@ impl RayShear {
             s: Vec3::new(s.x, s.y, s.z),
         }
     }
+
+    /// The four triangles' vertices translated to the origin, permuted and
+    /// sheared: `p[j] = [x, y, z]` of vertex `j` (z not yet scaled by
+    /// `s_z`), as [`intersect_watertight`] makes them.
+    #[inline(always)]
+    fn shear_lanes(&self, tri: &TriangleLanes) -> [[Vec4; 3]; 3] {
+        let [kx, ky, kz] = self.k;
+        debug_assert!(kx < 3 && ky < 3 && kz < 3);
+        let (ox, oy, oz) = (
+            Vec4::splat(self.o.x),
+            Vec4::splat(self.o.y),
+            Vec4::splat(self.o.z),
+        );
+        let (sx, sy) = (Vec4::splat(self.s.x), Vec4::splat(self.s.y));
+        std::array::from_fn(|j| {
+            let v = &tri.v[j];
+            // SAFETY: `new` makes every `k` below 3 (a position in a
+            // `Vec3`, or one taken modulo 3), and nothing else writes them;
+            // unchecked, the kernels keep no bounds checks per block.
+            let at = |k: usize| unsafe { *v.get_unchecked(k) };
+            let z = at(kz) - oz;
+            [(at(kx) - ox) + sx * z, (at(ky) - oy) + sy * z, z]
+        })
+    }
 }
 
 /// An edge function `a_x·b_y − a_y·b_x` in f64, from the f32 coordinates
@@ -167,12 +191,15 @@ fn edge_f64(ax: f32, ay: f32, bx: f32, by: f32) -> f32 {
 }
 
 /// The edge functions `e` of the lanes in `zero` recomputed in f64 from the
-/// sheared vertices `p`, as [`intersect_watertight`] does. Rare (a ray
-/// exactly through an edge or vertex, a degenerate triangle), so kept out
-/// of line, off the kernels' hot code.
+/// sheared vertices, as [`intersect_watertight`] does. Rare (a ray exactly
+/// through an edge or vertex, a degenerate triangle), so kept out of line,
+/// off the kernels' hot code; it shears the vertices again (the same
+/// operations, so the same values) rather than take them from the caller,
+/// which would keep them in memory on the hot path.
 #[cold]
 #[inline(never)]
-fn edges_f64(p: &[[Vec4; 3]; 3], e: [Vec4; 3], zero: u32) -> [Vec4; 3] {
+fn edges_f64(r: &RayShear, tri: &TriangleLanes, e: [Vec4; 3], zero: u32) -> [Vec4; 3] {
+    let p = r.shear_lanes(tri);
     let mut lanes = e.map(|v| v.to_array());
     for i in (0..LANES).filter(|i| zero & 1 << i != 0) {
         let c = |j: usize, a: usize| p[j][a][i];
@@ -201,16 +228,8 @@ pub fn intersect_watertight_lanes(
     t_min: f32,
     t_max: f32,
 ) -> LaneHits {
-    let [kx, ky, kz] = r.k;
-    let (ox, oy, oz) = (Vec4::splat(r.o.x), Vec4::splat(r.o.y), Vec4::splat(r.o.z));
-    let (sx, sy) = (Vec4::splat(r.s.x), Vec4::splat(r.s.y));
-    // Vertex j translated to the origin, permuted and sheared: [x, y, z]
-    // (z not yet scaled by s_z).
-    let p: [[Vec4; 3]; 3] = std::array::from_fn(|j| {
-        let v = &tri.v[j];
-        let z = v[kz] - oz;
-        [(v[kx] - ox) + sx * z, (v[ky] - oy) + sy * z, z]
-    });
+    // Vertex j translated to the origin, permuted and sheared.
+    let p = r.shear_lanes(tri);
     let edge = |a: &[Vec4; 3], b: &[Vec4; 3]| a[0] * b[1] - a[1] * b[0];
     let mut e = [edge(&p[1], &p[2]), edge(&p[2], &p[0]), edge(&p[0], &p[1])];
     let zero = e[0].cmpeq(Vec4::ZERO) | e[1].cmpeq(Vec4::ZERO) | e[2].cmpeq(Vec4::ZERO);
@@ -232,7 +251,7 @@ pub fn intersect_watertight_lanes(
     }
     let zero = zero.bitmask();
     if zero != 0 {
-        e = edges_f64(&p, e, zero);
+        e = edges_f64(r, tri, e, zero);
     }
     let det = (e[0] + e[1]) + e[2];
     let candidates = inside(&e) & det.cmpne(Vec4::ZERO);

@@ -390,7 +390,30 @@ impl Bvh8 {
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+        mut test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+    ) -> Option<(u32, f32)> {
+        self.closest_leaves_with(
+            ray,
+            counters,
+            || (),
+            #[inline(always)]
+            |_, first, count, t_max| test(first, count, t_max),
+        )
+    }
+
+    /// [`Bvh8::closest_leaves`] for a leaf test with per-ray constants:
+    /// `prepare` makes them once the ray is found to meet a child of the
+    /// root (most rays past a mesh do not), before the first leaf, and
+    /// `test` gets them with every leaf. The traversal holds them as it
+    /// holds its own constants, in registers where there is room, rather
+    /// than behind the test's captures.
+    #[inline]
+    pub fn closest_leaves_with<P>(
+        &self,
+        ray: &Ray,
+        counters: &mut TraversalCounters,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         if self.nodes.is_empty() {
             return None;
@@ -403,26 +426,33 @@ impl Bvh8 {
             // AVX-512F and VL where `has_avx512vl`.
             return unsafe {
                 if has_avx512vl() {
-                    by_octant!(octant, OCT => self.closest_entry::<OCT, true>(ray, counters, test))
+                    by_octant!(octant, OCT => self.closest_entry::<OCT, true, P>(ray, counters, prepare, test))
                 } else {
-                    by_octant!(octant, OCT => self.closest_entry::<OCT, false>(ray, counters, test))
+                    by_octant!(octant, OCT => self.closest_entry::<OCT, false, P>(ray, counters, prepare, test))
                 }
             };
         }
-        self.closest_portable(ray, counters, test)
+        self.closest_portable(ray, counters, prepare, test)
     }
 
     /// [`Bvh8::closest_leaves`] with the portable node visit; kept out of
     /// line so that the AVX2 entry's frame stays small.
     #[inline(never)]
-    fn closest_portable(
+    fn closest_portable<P>(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         let setup = RaySetup::new(ray, &self.root());
-        self.closest_with(ray.t_max, counters, test, &PortableLanes::new(&setup))
+        self.closest_with(
+            ray.t_max,
+            counters,
+            prepare,
+            test,
+            &PortableLanes::new(&setup),
+        )
     }
 
     /// The per-ray entry where the CPU has AVX2 and FMA, compiled for
@@ -438,15 +468,16 @@ impl Bvh8 {
     /// path.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
-    fn closest_entry<const OCT: u32, const WIDE: bool>(
+    fn closest_entry<const OCT: u32, const WIDE: bool, P>(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         let setup = RaySetup::new(ray, &self.root());
         if !setup.fused || setup.octant != OCT {
-            return self.closest_portable(ray, counters, test);
+            return self.closest_portable(ray, counters, prepare, test);
         }
         // The ray is of octant `OCT` and takes the fused test.
         let lanes = avx2::Avx2Lanes::<OCT>::new(&setup);
@@ -458,24 +489,27 @@ impl Bvh8 {
         if WIDE {
             // SAFETY: the caller chose `WIDE` where the CPU has AVX-512F
             // and VL.
-            unsafe { self.closest_avx512::<OCT>(&lanes, &root, ray.t_max, counters, test) }
+            unsafe {
+                self.closest_avx512::<OCT, P>(lanes, root, ray.t_max, counters, prepare, test)
+            }
         } else {
-            self.closest_avx2::<OCT>(&lanes, &root, ray.t_max, counters, test)
+            self.closest_avx2::<OCT, P>(lanes, root, ray.t_max, counters, prepare, test)
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
     #[inline(never)]
-    fn closest_avx2<const OCT: u32>(
+    fn closest_avx2<const OCT: u32, P>(
         &self,
-        lanes: &avx2::Avx2Lanes<OCT>,
-        root: &avx2::RootTest,
+        lanes: avx2::Avx2Lanes<OCT>,
+        root: avx2::RootTest,
         t_max: f32,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
-        self.closest_from_root::<OCT>(lanes, root, t_max, counters, test)
+        self.closest_from_root::<OCT, P>(&lanes, &root, t_max, counters, prepare, test)
     }
 
     /// [`Bvh8::closest_avx2`] compiled for AVX-512VL as well, as
@@ -487,15 +521,16 @@ impl Bvh8 {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,popcnt,bmi1,avx512f,avx512vl")]
     #[inline(never)]
-    fn closest_avx512<const OCT: u32>(
+    fn closest_avx512<const OCT: u32, P>(
         &self,
-        lanes: &avx2::Avx2Lanes<OCT>,
-        root: &avx2::RootTest,
+        lanes: avx2::Avx2Lanes<OCT>,
+        root: avx2::RootTest,
         t_max: f32,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
-        self.closest_from_root::<OCT>(lanes, root, t_max, counters, test)
+        self.closest_from_root::<OCT, P>(&lanes, &root, t_max, counters, prepare, test)
     }
 
     /// The kernels' body: the closest-hit traversal from the root's tests
@@ -503,45 +538,49 @@ impl Bvh8 {
     /// made again.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    fn closest_from_root<const OCT: u32>(
+    fn closest_from_root<const OCT: u32, P>(
         &self,
         lanes: &avx2::Avx2Lanes<OCT>,
         root: &avx2::RootTest,
         t_max: f32,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32, f32) -> Option<(u32, f32)>,
     ) -> Option<(u32, f32)> {
         let lanes = *lanes;
         let mut stack = Stack::new();
         let first = lanes.push(&self.nodes[0], root.enter, root.hit, &mut stack);
-        self.closest_after(t_max, counters, test, &lanes, stack, first)
+        self.closest_after(t_max, counters, (prepare, test), &lanes, (stack, first))
     }
 
     #[inline(always)]
-    fn closest_with(
+    fn closest_with<P>(
         &self,
         t_max: f32,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32, f32) -> Option<(u32, f32)>,
         lanes: &impl NodeVisit,
     ) -> Option<(u32, f32)> {
         let mut stack = Stack::new();
         let first = lanes.visit(&self.nodes[0], lanes.bound(t_max), &mut stack);
-        self.closest_after(t_max, counters, test, lanes, stack, first)
+        self.closest_after(t_max, counters, (prepare, test), lanes, (stack, first))
     }
 
     /// The closest-hit traversal after the visit of the root, which
     /// returned `first` and pushed the rest of its children hit onto
-    /// `stack`.
+    /// `stack`; `prepare` and `test` as [`Bvh8::closest_leaves_with`]'s.
     #[inline(always)]
-    fn closest_after(
+    fn closest_after<P>(
         &self,
         mut t_max: f32,
         counters: &mut TraversalCounters,
-        mut test: impl FnMut(u32, u32, f32) -> Option<(u32, f32)>,
+        (prepare, mut test): (
+            impl FnOnce() -> P,
+            impl FnMut(&P, u32, u32, f32) -> Option<(u32, f32)>,
+        ),
         lanes: &impl NodeVisit,
-        mut stack: Stack,
-        first: Option<u32>,
+        (mut stack, first): (Stack, Option<u32>),
     ) -> Option<(u32, f32)> {
         let mut best = None;
         let mut bound = lanes.bound(t_max);
@@ -550,6 +589,7 @@ impl Bvh8 {
             counters.nodes_visited += visited;
             return None;
         };
+        let prepared = prepare();
         'visit: loop {
             if entry & LEAF == 0 {
                 visited += 1;
@@ -561,7 +601,7 @@ impl Bvh8 {
             } else {
                 let (first, count) = Bvh8Node::leaf_range(entry);
                 tests += count as u64;
-                if let Some(h) = test(first, count, t_max) {
+                if let Some(h) = test(&prepared, first, count, t_max) {
                     (t_max, best) = (h.1, Some(h));
                     bound = lanes.bound(t_max);
                 }

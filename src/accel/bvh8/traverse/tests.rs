@@ -68,7 +68,8 @@ fn traversal_matches_brute_force_and_tree_is_valid() {
                 .filter_map(|p| t_of(p).filter(|&t| t < t_max).map(|t| (p, t)))
                 .min_by(|x, y| x.1.total_cmp(&y.1))
         };
-        let got = wide.closest_with(ray.t_max, &mut counters, nearest, &portable);
+        let leaf = |_: &(), first, count, t_max| nearest(first, count, t_max);
+        let got = wide.closest_with(ray.t_max, &mut counters, || (), leaf, &portable);
         assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
         let any = |first: u32, count: u32| (first..first + count).any(|p| t_of(p).is_some());
         assert_eq!(
@@ -78,6 +79,28 @@ fn traversal_matches_brute_force_and_tree_is_valid() {
         // And the per-leaf entry points.
         let got = wide.closest_leaves(&ray, &mut counters, nearest);
         assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
+        // Per-ray constants: made at most once, before the first leaf (and
+        // not for rays that miss the root's children); every leaf gets them.
+        let (mut made, mut leaves) = (0, 0);
+        let got = wide.closest_leaves_with(
+            &ray,
+            &mut counters,
+            || {
+                made += 1;
+                ray.o.x + 1.0
+            },
+            |&p: &f32, first, count, t_max| {
+                assert_eq!(p, ray.o.x + 1.0);
+                leaves += 1;
+                nearest(first, count, t_max)
+            },
+        );
+        assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
+        assert!(made <= 1 && (leaves == 0 || made == 1), "{made} {leaves}");
+        let mut enter = [0.0; WIDTH];
+        if portable.test(&wide.nodes[0], portable.bound(ray.t_max), &mut enter) == 0 {
+            assert_eq!(made, 0);
+        }
         assert_eq!(wide.any_leaves(&ray, &mut counters, any), brute.is_some());
     }
 }
@@ -294,7 +317,8 @@ fn whole_traversals_agree_with_and_without_avx2() {
                 wide.closest_leaves(&ray, &mut c, &mut leaf)
             } else {
                 let portable = PortableLanes::new(&RaySetup::new(&ray, &wide.root()));
-                wide.closest_with(ray.t_max, &mut c, &mut leaf, &portable)
+                let leaf = |_: &(), first, count, t_max| leaf(first, count, t_max);
+                wide.closest_with(ray.t_max, &mut c, || (), leaf, &portable)
             };
             // Any hit on the segment up to the middle of the closest hit.
             ray.t_max = hit.map_or(5.0, |h| h.1 * 0.5);
