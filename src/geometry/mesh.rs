@@ -597,12 +597,12 @@ impl Mesh {
     /// [`Mesh::occludes_object`] with the leaves reached as `BLOCKS` says.
     #[inline(always)]
     fn occludes_in<const BLOCKS: bool>(&self, ray: &Ray, counters: &mut TraceCounters) -> bool {
-        let shear = RayShear::new(ray.o, ray.d);
-        self.bvh.any_leaves(
+        self.bvh.any_leaves_with(
             ray,
             &mut counters.bvh,
+            || RayShear::new(ray.o, ray.d),
             #[inline(always)]
-            |first, count| self.leaf_occludes::<BLOCKS>(&shear, ray, first, count),
+            |shear, first, count| self.leaf_occludes::<BLOCKS>(shear, ray, first, count),
         )
     }
 

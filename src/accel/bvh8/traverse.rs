@@ -644,7 +644,27 @@ impl Bvh8 {
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32) -> bool,
+        mut test: impl FnMut(u32, u32) -> bool,
+    ) -> bool {
+        self.any_leaves_with(
+            ray,
+            counters,
+            || (),
+            #[inline(always)]
+            |_, first, count| test(first, count),
+        )
+    }
+
+    /// [`Bvh8::any_leaves`] for a leaf test with per-ray constants, made by
+    /// `prepare` as [`Bvh8::closest_leaves_with`] makes them: once the ray
+    /// is found to meet something in the root, before the first leaf.
+    #[inline]
+    pub fn any_leaves_with<P>(
+        &self,
+        ray: &Ray,
+        counters: &mut TraversalCounters,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32) -> bool,
     ) -> bool {
         if self.nodes.is_empty() {
             return false;
@@ -659,27 +679,33 @@ impl Bvh8 {
             // AVX-512F and VL where `has_avx512vl`.
             return unsafe {
                 if has_avx512vl() {
-                    by_octant!(octant, OCT => self.any_avx512::<OCT>(ray, counters, test))
+                    by_octant!(octant, OCT => self.any_avx512::<OCT, P>(ray, counters, prepare, test))
                 } else {
-                    by_octant!(octant, OCT => self.any_avx2::<OCT>(ray, counters, test))
+                    by_octant!(octant, OCT => self.any_avx2::<OCT, P>(ray, counters, prepare, test))
                 }
             };
         }
-        self.any_portable(ray, counters, test)
+        self.any_portable(ray, counters, prepare, test)
     }
 
     /// [`Bvh8::any_leaves`] with the portable node visit, out of line (the
     /// kernels fall back on it for the rare rays the fused test cannot
     /// take).
     #[inline(never)]
-    fn any_portable(
+    fn any_portable<P>(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32) -> bool,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32) -> bool,
     ) -> bool {
         let setup = RaySetup::new(ray, &self.root());
-        self.any_with(ray.t_max, counters, test, &PortableLanes::new(&setup))
+        self.any_with(
+            ray.t_max,
+            counters,
+            (prepare, test),
+            &PortableLanes::new(&setup),
+        )
     }
 
     /// The any-hit kernel for rays whose direction's signs put them in
@@ -690,31 +716,33 @@ impl Bvh8 {
     /// or whose setup names another octant, take the portable path.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    fn any_in_octant<const OCT: u32>(
+    fn any_in_octant<const OCT: u32, P>(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32) -> bool,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32) -> bool,
     ) -> bool {
         let setup = RaySetup::new(ray, &self.root());
         if !setup.fused || setup.octant != OCT {
-            return self.any_portable(ray, counters, test);
+            return self.any_portable(ray, counters, prepare, test);
         }
         // SAFETY: the callers are compiled for AVX2 and FMA, which the CPU
         // has; the ray is of octant `OCT` and takes the fused test.
         let lanes = unsafe { avx2::Avx2Lanes::<OCT>::new(&setup) };
-        self.any_with(ray.t_max, counters, test, &lanes)
+        self.any_with(ray.t_max, counters, (prepare, test), &lanes)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
-    fn any_avx2<const OCT: u32>(
+    fn any_avx2<const OCT: u32, P>(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32) -> bool,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32) -> bool,
     ) -> bool {
-        self.any_in_octant::<OCT>(ray, counters, test)
+        self.any_in_octant::<OCT, P>(ray, counters, prepare, test)
     }
 
     /// [`Bvh8::any_avx2`] compiled for AVX-512VL as well: the same
@@ -726,47 +754,53 @@ impl Bvh8 {
     /// is its closest-hit counterpart.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,popcnt,bmi1,avx512f,avx512vl")]
-    fn any_avx512<const OCT: u32>(
+    fn any_avx512<const OCT: u32, P>(
         &self,
         ray: &Ray,
         counters: &mut TraversalCounters,
-        test: impl FnMut(u32, u32) -> bool,
+        prepare: impl FnOnce() -> P,
+        test: impl FnMut(&P, u32, u32) -> bool,
     ) -> bool {
-        self.any_in_octant::<OCT>(ray, counters, test)
+        self.any_in_octant::<OCT, P>(ray, counters, prepare, test)
     }
 
     #[inline(always)]
-    fn any_with(
+    fn any_with<P>(
         &self,
         t_max: f32,
         counters: &mut TraversalCounters,
-        mut test: impl FnMut(u32, u32) -> bool,
+        (prepare, mut test): (impl FnOnce() -> P, impl FnMut(&P, u32, u32) -> bool),
         lanes: &impl NodeVisit,
     ) -> bool {
         let mut stack = Stack::new();
-        let (mut visited, mut tests) = (0u64, 0u64);
+        let (mut visited, mut tests) = (1u64, 0u64);
         let mut found = false;
         let bound = lanes.bound(t_max);
         // Only nodes go through the stack: a node's leaves are tested when
         // it is visited, in lane order, which ends occluded rays sooner.
-        let mut entry = 0;
-        'visit: loop {
-            visited += 1;
-            let node = &self.nodes[entry as usize];
-            let (next, mut leaves) = lanes.visit_any(node, bound, &mut stack);
-            while leaves != 0 {
-                let k = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let (first, count) = Bvh8Node::leaf_range(node.child[k]);
-                tests += count as u64;
-                if test(first, count) {
-                    found = true;
-                    break 'visit;
+        let mut node = &self.nodes[0];
+        let (mut next, mut leaves) = lanes.visit_any(node, bound, &mut stack);
+        if next.is_some() || leaves != 0 {
+            let prepared = prepare();
+            'visit: loop {
+                while leaves != 0 {
+                    let k = leaves.trailing_zeros() as usize;
+                    leaves &= leaves - 1;
+                    let (first, count) = Bvh8Node::leaf_range(node.child[k]);
+                    tests += count as u64;
+                    if test(&prepared, first, count) {
+                        found = true;
+                        break 'visit;
+                    }
                 }
-            }
-            match next.or_else(|| stack.pop_entry()) {
-                Some(c) => entry = c,
-                None => break,
+                match next.or_else(|| stack.pop_entry()) {
+                    Some(c) => {
+                        visited += 1;
+                        node = &self.nodes[c as usize];
+                        (next, leaves) = lanes.visit_any(node, bound, &mut stack);
+                    }
+                    None => break,
+                }
             }
         }
         counters.nodes_visited += visited;

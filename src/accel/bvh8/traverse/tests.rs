@@ -73,7 +73,12 @@ fn traversal_matches_brute_force_and_tree_is_valid() {
         assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
         let any = |first: u32, count: u32| (first..first + count).any(|p| t_of(p).is_some());
         assert_eq!(
-            wide.any_with(ray.t_max, &mut counters, any, &portable),
+            wide.any_with(
+                ray.t_max,
+                &mut counters,
+                (|| (), |_: &(), f, c| any(f, c)),
+                &portable
+            ),
             brute.is_some()
         );
         // And the per-leaf entry points.
@@ -98,10 +103,30 @@ fn traversal_matches_brute_force_and_tree_is_valid() {
         assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
         assert!(made <= 1 && (leaves == 0 || made == 1), "{made} {leaves}");
         let mut enter = [0.0; WIDTH];
-        if portable.test(&wide.nodes[0], portable.bound(ray.t_max), &mut enter) == 0 {
+        let root_hit = portable.test(&wide.nodes[0], portable.bound(ray.t_max), &mut enter);
+        if root_hit == 0 {
             assert_eq!(made, 0);
         }
         assert_eq!(wide.any_leaves(&ray, &mut counters, any), brute.is_some());
+        let (mut made, mut leaves) = (0, 0);
+        let found = wide.any_leaves_with(
+            &ray,
+            &mut counters,
+            || {
+                made += 1;
+                ray.o.y - 1.0
+            },
+            |&p: &f32, first, count| {
+                assert_eq!(p, ray.o.y - 1.0);
+                leaves += 1;
+                any(first, count)
+            },
+        );
+        assert_eq!(found, brute.is_some());
+        assert!(made <= 1 && (leaves == 0 || made == 1), "{made} {leaves}");
+        if root_hit == 0 {
+            assert_eq!(made, 0);
+        }
     }
 }
 
@@ -337,7 +362,12 @@ fn whole_traversals_agree_with_and_without_avx2() {
                 wide.any_leaves(&ray, &mut any_c, &mut any_leaf)
             } else {
                 let portable = PortableLanes::new(&RaySetup::new(&ray, &wide.root()));
-                wide.any_with(ray.t_max, &mut any_c, &mut any_leaf, &portable)
+                wide.any_with(
+                    ray.t_max,
+                    &mut any_c,
+                    (|| (), |_: &(), f, c| any_leaf(f, c)),
+                    &portable,
+                )
             };
             out.push((
                 hit.map(|h| (h.0, h.1.to_bits())),
