@@ -11,7 +11,9 @@
 //! Meshes: a generated bumpy icosphere of 1.31M triangles (always), the meshes
 //! of `../shared/data/` when that folder is there (it says so when it is not),
 //! and any files listed in `GLINT_BENCH_MESHES` (colon-separated), e.g. the
-//! `icosphere_8.ply` that the Embree script writes, to measure the very same file.
+//! `icosphere_8.ply` that the Embree script writes, to measure the very same file
+//! (a listed file replaces a built-in mesh of the same name, and is seen
+//! from the default view).
 
 use criterion::measurement::WallTime;
 use criterion::{
@@ -137,7 +139,12 @@ fn meshes() -> Vec<BenchMesh> {
         );
     }
     if let Ok(list) = std::env::var("GLINT_BENCH_MESHES") {
+        let stem = |p: &str| Path::new(p).file_stem().map(|s| s.to_os_string());
         for p in list.split(':').filter(|p| !p.is_empty()) {
+            // A listed file replaces a built-in one of the same name (with
+            // the default view, as the anchors' scripts use for every
+            // mesh), rather than adding a second benchmark of that name.
+            files.retain(|(q, _, _)| stem(q) != stem(p));
             files.push((p.to_string(), default_view, Vec3::Y));
         }
     }
