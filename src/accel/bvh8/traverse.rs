@@ -16,81 +16,16 @@
 //! saves a permute, a load and a store per node, about a tenth of a shadow
 //! ray's time on igea and lucy.
 
-use super::{Bvh8, Bvh8Node, LEAF, STACK, WIDTH};
+use super::{Bvh8, Bvh8Node, LEAF, WIDTH};
 use crate::accel::bvh::TraversalCounters;
 use crate::math::{Aabb, Ray};
 use glam::Vec4;
-use std::mem::MaybeUninit;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 
 mod setup;
+mod stack;
 pub(super) use setup::{RaySetup, WIDEN};
-
-/// The traversal stack: node or leaf entries with the distances at which
-/// the ray enters their boxes. It is not cleared for every ray.
-struct Stack {
-    entry: Aligned<[MaybeUninit<u32>; STACK]>,
-    dist: Aligned<[MaybeUninit<f32>; STACK]>,
-    len: usize,
-}
-
-/// A stack array on a 32-byte boundary, as the 256-bit stores like.
-#[repr(C, align(32))]
-struct Aligned<T>(T);
-
-impl Stack {
-    #[inline(always)]
-    fn new() -> Self {
-        Stack {
-            entry: Aligned([const { MaybeUninit::uninit() }; STACK]),
-            dist: Aligned([const { MaybeUninit::uninit() }; STACK]),
-            len: 0,
-        }
-    }
-
-    #[inline(always)]
-    fn push(&mut self, entry: u32, dist: f32) {
-        // Indexing checks the bound; `STACK` covers the deepest tree.
-        self.entry.0[self.len].write(entry);
-        self.dist.0[self.len].write(dist);
-        self.len += 1;
-    }
-
-    /// Pushes an entry without a distance, for [`Stack::pop_entry`] only.
-    #[inline(always)]
-    fn push_entry(&mut self, entry: u32) {
-        self.entry.0[self.len].write(entry);
-        self.len += 1;
-    }
-
-    /// Pops an entry pushed with or without its distance.
-    #[inline(always)]
-    fn pop_entry(&mut self) -> Option<u32> {
-        if self.len == 0 {
-            return None;
-        }
-        self.len -= 1;
-        // SAFETY: entries below `len` were written by a push or a visit.
-        Some(unsafe { self.entry.0[self.len].assume_init() })
-    }
-
-    /// Pops an entry with its distance; only for stacks whose every entry
-    /// was pushed with one.
-    #[inline(always)]
-    fn pop(&mut self) -> Option<(u32, f32)> {
-        if self.len == 0 {
-            return None;
-        }
-        self.len -= 1;
-        // SAFETY: items below `len` were written by `push` or a visit.
-        unsafe {
-            Some((
-                self.entry.0[self.len].assume_init(),
-                self.dist.0[self.len].assume_init(),
-            ))
-        }
-    }
-}
+use stack::Stack;
 
 /// A node visit: the slab tests of a ray against the eight boxes of a node.
 trait NodeVisit {
@@ -486,6 +421,8 @@ impl Bvh8 {
             counters.nodes_visited += 1;
             return None;
         }
+        // The lanes and the root's tests go by value: their copies for the
+        // kernel are then made here, after the miss check, not before it.
         if WIDE {
             // SAFETY: the caller chose `WIDE` where the CPU has AVX-512F
             // and VL.
@@ -780,27 +717,29 @@ impl Bvh8 {
         // it is visited, in lane order, which ends occluded rays sooner.
         let mut node = &self.nodes[0];
         let (mut next, mut leaves) = lanes.visit_any(node, bound, &mut stack);
-        if next.is_some() || leaves != 0 {
-            let prepared = prepare();
-            'visit: loop {
-                while leaves != 0 {
-                    let k = leaves.trailing_zeros() as usize;
-                    leaves &= leaves - 1;
-                    let (first, count) = Bvh8Node::leaf_range(node.child[k]);
-                    tests += count as u64;
-                    if test(&prepared, first, count) {
-                        found = true;
-                        break 'visit;
-                    }
+        if next.is_none() && leaves == 0 {
+            counters.nodes_visited += visited;
+            return false;
+        }
+        let prepared = prepare();
+        'visit: loop {
+            while leaves != 0 {
+                let k = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let (first, count) = Bvh8Node::leaf_range(node.child[k]);
+                tests += count as u64;
+                if test(&prepared, first, count) {
+                    found = true;
+                    break 'visit;
                 }
-                match next.or_else(|| stack.pop_entry()) {
-                    Some(c) => {
-                        visited += 1;
-                        node = &self.nodes[c as usize];
-                        (next, leaves) = lanes.visit_any(node, bound, &mut stack);
-                    }
-                    None => break,
+            }
+            match next.or_else(|| stack.pop_entry()) {
+                Some(c) => {
+                    visited += 1;
+                    node = &self.nodes[c as usize];
+                    (next, leaves) = lanes.visit_any(node, bound, &mut stack);
                 }
+                None => break,
             }
         }
         counters.nodes_visited += visited;
