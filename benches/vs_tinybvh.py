@@ -6,23 +6,38 @@ tinybvh is built from ../shared/anchors/tinybvh (its header, bench.cpp and
 README: g++ with OpenMP, `-O3 -march=native`); the bumpy icosphere comes
 from ../shared/anchors/common.py (needs numpy and trimesh). Both sides trace
 1920x1080 primary rays through pixel centres and the shadow rays of the lit
-hits, on both cores, as ../shared/anchors/embree_bench.py defines them; the
-figure compared is tinybvh's `BVH8_CPU 2 thr` line and the middle of
-criterion's throughput for glint's `bvh/primary/MESH` and `bvh/shadow/MESH`;
-then glint's packets of 16 rays (`bvh/primary_packets/MESH`,
+hits, on both cores, as ../shared/anchors/embree_bench.py defines them.
+
+Both figures are medians of repeated timings: tinybvh's `BVH8_CPU 2 thr`
+line is the median of its 5 runs, and glint's is the median of criterion's
+samples (per-iteration times in `target/criterion/bvh/KIND/MESH/new/
+sample.json`) for `bvh/primary/MESH` and `bvh/shadow/MESH`. Criterion's own
+printed estimate is a regression slope, which one slow sample on a busy
+machine pulls down; the median is the statistic tinybvh reports.
+
+The two are run in rounds (`--rounds N`, 3 by default), glint first in odd
+rounds and tinybvh first in even ones, so that a machine getting slower or
+faster during the run does not favour either side. Each round prints its
+ratios; the summary gives, per mesh and kind, the medians over rounds of
+both figures, their ratio, and the range of the rounds' ratios. Then
+glint's packets of 16 rays (`bvh/primary_packets/MESH`,
 `bvh/shadow_packets/MESH`: the same rays in 4x4 pixel blocks) against the
-same BVH8_CPU lines, and glint's primary packets against the faster of
+same BVH8_CPU figures, and glint's primary packets against the faster of
 tinybvh's two 256-ray packet kernels (`BVH 256-pkt`, primary rays only).
 
     python3 benches/vs_tinybvh.py                 # igea and icosphere_8
     python3 benches/vs_tinybvh.py other.ply ...   # other meshes (ASCII PLY
                                                   # and OBJ are converted)
+    python3 benches/vs_tinybvh.py --rounds 5 ...
 
 Run it alone on the machine: the two are timed one after the other, and
 ratios from a machine busy with other work mean little."""
 
+import argparse
+import json
 import os
 import re
+import statistics
 import subprocess
 import sys
 
@@ -55,25 +70,31 @@ def tinybvh(mesh):
     return single + (max(packets) if packets else None,)
 
 
+KINDS = ["primary", "shadow", "primary_packets", "shadow_packets"]
+
+
 def glint(meshes):
-    """{name: (primary, shadow)} Mrays/s from glint's bvh bench."""
+    """{name: (primary, shadow, primary_packets, shadow_packets)} Mrays/s
+    from glint's bvh bench: rays over the median of criterion's samples."""
     names = [os.path.splitext(os.path.basename(m))[0] for m in meshes]
     env = dict(os.environ, GLINT_BENCH_MESHES=":".join(meshes))
-    pattern = "(primary|shadow|primary_packets|shadow_packets)/(" + "|".join(map(re.escape, names)) + ")$"
-    out = run(["cargo", "bench", "--bench", "bvh", "--", pattern], cwd=ROOT, env=env)
-    found = {}
-    current = None
-    for line in out.splitlines():
-        m = re.match(r"bvh/(primary|shadow|primary_packets|shadow_packets)/(\S+)", line)
-        if m:
-            current = (m.group(1), m.group(2))
-        m = re.search(r"thrpt:\s+\[\S+ \S+ ([\d.]+) (K|M|G)elem/s", line)
-        if m and current and "%" not in line:
-            scale = {"K": 1e-3, "M": 1.0, "G": 1e3}[m.group(2)]
-            found[current] = float(m.group(1)) * scale
-            current = None
-    kinds = ["primary", "shadow", "primary_packets", "shadow_packets"]
-    return {n: tuple(found.get((k, n)) for k in kinds) for n in names}
+    pattern = "(" + "|".join(KINDS) + ")/(" + "|".join(map(re.escape, names)) + ")$"
+    run(["cargo", "bench", "--bench", "bvh", "--", pattern], cwd=ROOT, env=env)
+    target = os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target"))
+
+    def figure(kind, name):
+        d = os.path.join(target, "criterion", "bvh", kind, name, "new")
+        try:
+            with open(os.path.join(d, "benchmark.json")) as f:
+                rays = json.load(f)["throughput"]["Elements"]
+            with open(os.path.join(d, "sample.json")) as f:
+                sample = json.load(f)
+        except (OSError, KeyError, ValueError):
+            return None
+        per_iter = [t / n for t, n in zip(sample["times"], sample["iters"])]
+        return rays / statistics.median(per_iter) * 1e3  # ns -> Mrays/s
+
+    return {n: tuple(figure(k, n) for k in KINDS) for n in names}
 
 
 def binary_ply(mesh):
@@ -96,33 +117,52 @@ def binary_ply(mesh):
 
 
 def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("meshes", nargs="*", help="PLY or OBJ files (default: igea, icosphere_8)")
+    parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds of both (3)")
+    args = parser.parse_args()
+    if args.rounds < 1:
+        parser.error("--rounds must be at least 1")
     tb = os.path.join(ANCHORS, "tinybvh")
     if not os.path.isfile(os.path.join(tb, "tiny_bvh.h")):
         sys.exit(f"{tb}/tiny_bvh.h is not there: this script needs ../shared/anchors/tinybvh")
     os.makedirs(OUT, exist_ok=True)
     run(["g++", "-O3", "-march=native", "-fopenmp", "-std=c++20", "-I" + tb,
          os.path.join(tb, "bench.cpp"), "-o", os.path.join(OUT, "bench_native"), "-lpthread"])
-    meshes = sys.argv[1:]
+    meshes = args.meshes
     if not meshes:
         sys.path.insert(0, ANCHORS)
         import common  # noqa: E402  (numpy, trimesh)
         meshes = [os.path.join(SHARED, "data", "igea_tris.ply")]
         meshes += common.generated_meshes([8], os.path.join(OUT, "meshes"))
     meshes = [binary_ply(os.path.abspath(m)) for m in meshes]
-    ours = glint(meshes)
-    print(f"{'mesh':<16} {'kind':<8} {'glint':>8} {'tinybvh':>8} {'ratio':>6}   (Mrays/s, 2 threads)")
-    for mesh in meshes:
-        name = os.path.splitext(os.path.basename(mesh))[0]
-        theirs = tinybvh(mesh)
-        # glint's single rays and packets against BVH8_CPU's single rays,
-        # and glint's primary packets against tinybvh's best packet kernel.
-        rows = [("primary", 0, 0), ("shadow", 1, 1), ("primary_packets", 2, 0),
-                ("shadow_packets", 3, 1), ("primary_packets", 2, 2)]
-        for kind, ko, kt in rows:
-            g, t = ours[name][ko], theirs[kt]
-            label = kind if kt != 2 else kind + " vs tinybvh's packets"
-            ratio = f"{g / t:6.2f}" if g and t else "   n/a"
-            print(f"{name:<16} {label:<8} {g or float('nan'):8.2f} {t or float('nan'):8.2f} {ratio}")
+    names = [os.path.splitext(os.path.basename(m))[0] for m in meshes]
+    # (glint row index, tinybvh row index, label) of each comparison.
+    rows = [(0, 0, "primary"), (1, 1, "shadow"), (2, 0, "primary_packets"),
+            (3, 1, "shadow_packets"), (2, 2, "primary_packets vs tinybvh's packets")]
+    ours, theirs = [], []
+    for r in range(args.rounds):
+        both = [lambda: ours.append(glint(meshes)),
+                lambda: theirs.append({n: tinybvh(m) for n, m in zip(names, meshes)})]
+        for step in (both if r % 2 == 0 else both[::-1]):
+            step()
+        print(f"round {r + 1}: " + "; ".join(
+            f"{n} {label} {ours[-1][n][g] / theirs[-1][n][t]:.2f}"
+            for n in names for g, t, label in rows[:2]
+            if ours[-1][n][g] and theirs[-1][n][t]), flush=True)
+    print(f"\n{'mesh':<16} {'kind':<38} {'glint':>8} {'tinybvh':>8} {'ratio':>6}  rounds"
+          f"   (Mrays/s, 2 threads, medians over {args.rounds} rounds)")
+    for n in names:
+        for g, t, label in rows:
+            gs = [o[n][g] for o in ours if o[n][g]]
+            ts = [x[n][t] for x in theirs if x[n][t]]
+            if not gs or not ts:
+                print(f"{n:<16} {label:<38} {'n/a':>8}")
+                continue
+            gm, tm = statistics.median(gs), statistics.median(ts)
+            each = [o[n][g] / x[n][t] for o, x in zip(ours, theirs) if o[n][g] and x[n][t]]
+            print(f"{n:<16} {label:<38} {gm:8.2f} {tm:8.2f} {gm / tm:6.2f}  "
+                  f"{min(each):.2f}-{max(each):.2f}")
 
 
 if __name__ == "__main__":
