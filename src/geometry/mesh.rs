@@ -277,6 +277,19 @@ impl Mesh {
         }
     }
 
+    /// The triangle in lane 0 of the lanes that [`Mesh::leaf_lanes`]
+    /// hands a visit with `at`: with blocks, `at` is the block, whose
+    /// triangle is looked up only for a hit (not for every block tested);
+    /// otherwise it is the triangle.
+    #[inline(always)]
+    fn lane_triangle<const BLOCKS: bool>(&self, at: u32) -> u32 {
+        if BLOCKS {
+            self.block_first[at as usize]
+        } else {
+            at
+        }
+    }
+
     /// Checks the BVH as [`Bvh8::validate`] does against the triangles'
     /// boxes, with block-numbered leaves (see [`Mesh::bvh`]) read as the
     /// triangles they hold, and checks that each block holds its leaf's
@@ -323,10 +336,10 @@ impl Mesh {
         }
     }
 
-    /// Calls `visit(lanes, own, base)` for the `count` triangles of the
+    /// Calls `visit(lanes, own, at)` for the `count` triangles of the
     /// leaf whose BVH word holds `first` (see [`Mesh::leaf_triangles`]),
-    /// four at a time: lane `i` holds triangle `base + i` where bit `i` of
-    /// `own` is set, and a lane whose bit is clear holds a triangle that
+    /// four at a time: lane `i` holds triangle `lane_triangle(at) + i`
+    /// ([`Mesh::lane_triangle`]) where bit `i` of `own` is set, and a lane whose bit is clear holds a triangle that
     /// is not the leaf's: the visit must ignore it. Stops when `visit`
     /// returns true, and returns whether it did. Small meshes take the
     /// lanes from [`Mesh::lanes`], larger ones from [`Mesh::blocks`] where
@@ -357,9 +370,8 @@ impl Mesh {
         if BLOCKS {
             // `first` is the leaf's first block.
             let leaf = &self.blocks[first as usize..(first + blocks) as usize];
-            let bases = &self.block_first[first as usize..(first + blocks) as usize];
-            for (lanes, &base) in leaf.iter().zip(bases) {
-                if visit(lanes, ALL, base) {
+            for (lanes, at) in leaf.iter().zip(first..) {
+                if visit(lanes, ALL, at) {
                     return true;
                 }
             }
@@ -562,7 +574,7 @@ impl Mesh {
             first,
             count,
             #[inline(always)]
-            |lanes, own, base| {
+            |lanes, own, at| {
                 let h = intersect_watertight_lanes(shear, lanes, t_min, t_max);
                 // Every lane hit is nearer than `t_max`; the nearest, the
                 // first of equals, found in registers: the least `t` of
@@ -576,7 +588,7 @@ impl Mesh {
                     let (b1, b2) = (h.b1.to_array(), h.b2.to_array());
                     t_max = near;
                     *bary = (b1[i as usize], b2[i as usize]);
-                    best = Some((base + i, t_max));
+                    best = Some((self.lane_triangle::<BLOCKS>(at) + i, t_max));
                 }
                 false
             },
