@@ -267,26 +267,15 @@ impl Mesh {
 
     /// The first triangle of the leaf whose BVH word holds `first`: its
     /// first block's lane 0 where the mesh keeps [`Mesh::blocks`], else
-    /// `first` itself. The leaf's `count` triangles follow it.
+    /// `first` itself. The leaf's `count` triangles follow it. Likewise,
+    /// for any block `first`, its lane 0 (as [`Mesh::leaf_lanes`] names
+    /// the blocks it hands over).
     #[inline(always)]
     fn leaf_triangles(&self, first: u32) -> u32 {
         if self.blocks.is_empty() {
             first
         } else {
             self.block_first[first as usize]
-        }
-    }
-
-    /// The triangle in lane 0 of the lanes that [`Mesh::leaf_lanes`]
-    /// hands a visit with `at`: with blocks, `at` is the block, whose
-    /// triangle is looked up only for a hit (not for every block tested);
-    /// otherwise it is the triangle.
-    #[inline(always)]
-    fn lane_triangle<const BLOCKS: bool>(&self, at: u32) -> u32 {
-        if BLOCKS {
-            self.block_first[at as usize]
-        } else {
-            at
         }
     }
 
@@ -338,9 +327,11 @@ impl Mesh {
 
     /// Calls `visit(lanes, own, at)` for the `count` triangles of the
     /// leaf whose BVH word holds `first` (see [`Mesh::leaf_triangles`]),
-    /// four at a time: lane `i` holds triangle `lane_triangle(at) + i`
-    /// ([`Mesh::lane_triangle`]) where bit `i` of `own` is set, and a lane whose bit is clear holds a triangle that
-    /// is not the leaf's: the visit must ignore it. Stops when `visit`
+    /// four at a time: lane `i` holds triangle `leaf_triangles(at) + i`
+    /// where bit `i` of `own` is set (`at` names the block where the mesh
+    /// keeps blocks, so that a visit looks its triangle up only for a
+    /// hit), and a lane whose bit is clear holds a triangle that is not
+    /// the leaf's: the visit must ignore it. Stops when `visit`
     /// returns true, and returns whether it did. Small meshes take the
     /// lanes from [`Mesh::lanes`], larger ones from [`Mesh::blocks`] where
     /// they keep them, else gather the vertices.
@@ -588,7 +579,7 @@ impl Mesh {
                     let (b1, b2) = (h.b1.to_array(), h.b2.to_array());
                     t_max = near;
                     *bary = (b1[i as usize], b2[i as usize]);
-                    best = Some((self.lane_triangle::<BLOCKS>(at) + i, t_max));
+                    best = Some((self.leaf_triangles(at) + i, t_max));
                 }
                 false
             },

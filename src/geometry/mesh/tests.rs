@@ -28,7 +28,7 @@ fn block_numbered_leaves_validate_and_hold_their_triangles() {
         let mut j = 0;
         m.leaf_lanes::<true>(first, count, |lanes, own, at| {
             let real = (count - j * LANES as u32).min(LANES as u32) as usize;
-            let base = m.lane_triangle::<true>(at);
+            let base = m.leaf_triangles(at);
             j += 1;
             for i in 0..LANES {
                 assert!(own & 1 << i != 0);
