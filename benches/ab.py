@@ -20,8 +20,8 @@ side's time (each run's figure: the median of criterion's per-iteration
 samples, as `vs_tinybvh.py` takes it), B's speed relative to A's (A's time
 over B's: above 1 when B is faster) and the range of the rounds' ratios.
 A difference is worth believing only where that range stays on one side
-of 1 over several rounds: on the shared 2-core machines, two binaries of
-identical code have timed up to 12 % apart in a single pair of runs.
+of 1 over several rounds: on the shared 2-core machines, two binaries
+doing the same work have timed up to 27 % apart in a single pair of runs.
 
 Comparing a revision with itself (`ab.py HEAD HEAD`) shows that noise
 floor for the chosen benches. Run it alone on the machine."""
