@@ -40,8 +40,13 @@ OUT = os.environ.get("OUT", "/tmp/glint_ab")
 
 
 def run(cmd, **kw):
+    """`cmd`'s output; on failure, its error output and an exit."""
     print("+", " ".join(cmd), file=sys.stderr)
-    return subprocess.run(cmd, check=True, text=True, capture_output=True, **kw).stdout
+    done = subprocess.run(cmd, text=True, capture_output=True, **kw)
+    if done.returncode != 0:
+        sys.stderr.write(done.stderr[-4000:])
+        raise SystemExit(f"failed ({done.returncode}): {' '.join(cmd)}")
+    return done.stdout
 
 
 def source(rev, made):
