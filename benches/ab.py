@@ -9,11 +9,11 @@ working tree as it is. Each revision other than `.` is checked out with
 `git worktree` next to this checkout (`../glint-ab-<commit>`, so that
 paths such as `../shared/data` resolve as they do here; removed at the
 end) and its bench built with `cargo bench --no-run` into this
-checkout's target folder (the dependencies are built once). Then the two bench binaries run in rounds,
-A first in odd rounds and B first in even ones, each with its own
-criterion folder (`CRITERION_HOME`), so that neither compares against the
-other's saved samples and a machine getting slower or faster during the
-run favours neither.
+checkout's target folder (the dependencies are built once). Then the two
+bench binaries run in rounds, A first in odd rounds and B first in even
+ones, each with its own criterion folder (`CRITERION_HOME`), so that
+neither compares against the other's saved samples and a machine getting
+slower or faster during the run favours neither.
 
 For every benchmark id the script prints the median over rounds of each
 side's time (each run's figure: the median of criterion's per-iteration
@@ -33,6 +33,8 @@ import statistics
 import subprocess
 import sys
 import time
+
+from criterion_samples import median_ns
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -91,18 +93,16 @@ def timings(home, since):
     for folder, _, files in os.walk(home):
         if os.path.basename(folder) != "new" or "sample.json" not in files:
             continue
-        path = os.path.join(folder, "sample.json")
-        if os.path.getmtime(path) < since:
+        if os.path.getmtime(os.path.join(folder, "sample.json")) < since:
             continue
         try:
             with open(os.path.join(folder, "benchmark.json")) as f:
                 name = json.load(f)["full_id"]
-            with open(path) as f:
-                sample = json.load(f)
         except (OSError, KeyError, ValueError):
             continue
-        per_iter = [t / n for t, n in zip(sample["times"], sample["iters"])]
-        found[name] = statistics.median(per_iter)
+        ns = median_ns(folder)
+        if ns is not None:
+            found[name] = ns
     return found
 
 

@@ -41,6 +41,8 @@ import statistics
 import subprocess
 import sys
 
+from criterion_samples import median_ns
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 SHARED = os.path.join(ROOT, "..", "shared")
@@ -87,12 +89,10 @@ def glint(meshes):
         try:
             with open(os.path.join(d, "benchmark.json")) as f:
                 rays = json.load(f)["throughput"]["Elements"]
-            with open(os.path.join(d, "sample.json")) as f:
-                sample = json.load(f)
         except (OSError, KeyError, ValueError):
             return None
-        per_iter = [t / n for t, n in zip(sample["times"], sample["iters"])]
-        return rays / statistics.median(per_iter) * 1e3  # ns -> Mrays/s
+        ns = median_ns(d)
+        return None if ns is None else rays / ns * 1e3  # ns -> Mrays/s
 
     return {n: tuple(figure(k, n) for k in KINDS) for n in names}
 
