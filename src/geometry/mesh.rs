@@ -96,14 +96,31 @@ pub enum MeshDataError {
     },
 }
 
-/// The [`RayShear`] of each ray of a packet (spare slots get a fixed,
-/// unused one).
-#[inline(always)]
-fn packet_shears(rays: &[Ray]) -> [RayShear; PACKET] {
-    std::array::from_fn(|r| match rays.get(r) {
-        Some(ray) => RayShear::new(ray.o, ray.d),
-        None => RayShear::new(Vec3::ZERO, Vec3::Z),
-    })
+/// The [`RayShear`] of each ray of a packet, made when the ray first
+/// reaches a leaf: most rays of a packet that passes a mesh by reach none,
+/// and a shear costs a division (made for all sixteen up front, it made
+/// packets of camera rays slower than single rays on a mesh that covers
+/// little of the frame).
+struct PacketShears<'a> {
+    rays: &'a [Ray],
+    made: [Option<RayShear>; PACKET],
+}
+
+impl<'a> PacketShears<'a> {
+    #[inline(always)]
+    fn new(rays: &'a [Ray]) -> Self {
+        PacketShears {
+            rays,
+            made: [None; PACKET],
+        }
+    }
+
+    /// Ray `r`'s shear.
+    #[inline(always)]
+    fn get(&mut self, r: usize) -> &RayShear {
+        let ray = &self.rays[r];
+        self.made[r].get_or_insert_with(|| RayShear::new(ray.o, ray.d))
+    }
 }
 
 impl Mesh {
@@ -479,14 +496,15 @@ impl Mesh {
         assert!(rays.len() <= PACKET && out.len() == rays.len());
         let mut bary = [(0.0, 0.0); PACKET];
         let mut hits = [None; PACKET];
-        let shears = packet_shears(rays);
+        let mut shears = PacketShears::new(rays);
         self.bvh.closest_packet(
             rays,
             &mut counters.bvh,
             #[inline(always)]
             |r, first, count, t_max| {
                 let t_min = rays[r].t_min;
-                self.leaf_closest::<BLOCKS>(&shears[r], t_min, first, count, t_max, &mut bary[r])
+                let shear = shears.get(r);
+                self.leaf_closest::<BLOCKS>(shear, t_min, first, count, t_max, &mut bary[r])
             },
             &mut hits[..rays.len()],
         );
@@ -518,12 +536,12 @@ impl Mesh {
         counters: &mut TraceCounters,
         out: &mut [bool],
     ) {
-        let shears = packet_shears(rays);
+        let mut shears = PacketShears::new(rays);
         self.bvh.any_packet(
             rays,
             &mut counters.bvh,
             #[inline(always)]
-            |r, first, count| self.leaf_occludes::<BLOCKS>(&shears[r], &rays[r], first, count),
+            |r, first, count| self.leaf_occludes::<BLOCKS>(shears.get(r), &rays[r], first, count),
             out,
         );
     }
