@@ -9,7 +9,8 @@ working tree as it is. Each revision other than `.` is checked out with
 `git worktree` next to this checkout (`../glint-ab-<commit>`, so that
 paths such as `../shared/data` resolve as they do here; removed at the
 end) and its bench built with `cargo bench --no-run` into this
-checkout's target folder (the dependencies are built once). Then the two
+checkout's target folder (the dependencies are built once; glint itself
+is rebuilt for each side). Then the two
 bench binaries run in rounds, A first in odd rounds and B first in even
 ones, each with its own criterion folder (`CRITERION_HOME`), so that
 neither compares against the other's saved samples and a machine getting
@@ -64,12 +65,18 @@ def source(rev, made):
     return path
 
 
-def build(src, bench, label):
-    """Builds `bench` in `src` and copies its binary to OUT/<label>."""
+def build_artifact(src, cargo_args, name, kind, dest):
+    """Runs `cargo CARGO_ARGS` in `src` and copies the executable of target
+    `name` (of kind `kind`: "bench" or "bin") to `dest`. glint's own
+    artifacts are cleaned first: both sides build into one target folder
+    (the dependencies are built once), and cargo names glint's artifacts
+    the same for any checkout of the workspace, so without the clean a
+    side whose files are older than the other side's build is taken as
+    up to date and gets the other side's binary."""
     target = os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target"))
     env = dict(os.environ, CARGO_TARGET_DIR=target)
-    out = run(["cargo", "bench", "--bench", bench, "--no-run", "--message-format=json"],
-              cwd=src, env=env)
+    run(["cargo", "clean", "--release", "-p", "glint"], cwd=src, env=env)
+    out = run(["cargo"] + cargo_args + ["--message-format=json"], cwd=src, env=env)
     exe = None
     for line in out.splitlines():
         try:
@@ -77,13 +84,18 @@ def build(src, bench, label):
         except ValueError:
             continue
         if (msg.get("reason") == "compiler-artifact" and msg.get("executable")
-                and msg["target"]["name"] == bench and "bench" in msg["target"]["kind"]):
+                and msg["target"]["name"] == name and kind in msg["target"]["kind"]):
             exe = msg["executable"]
     if exe is None:
-        sys.exit(f"cargo built no bench executable named {bench} in {src}")
-    dest = os.path.join(OUT, label)
+        sys.exit(f"cargo built no {kind} executable named {name} in {src}")
     run(["cp", exe, dest])
     return dest
+
+
+def build(src, bench, label):
+    """Builds `bench` in `src` and copies its binary to OUT/<label>."""
+    return build_artifact(src, ["bench", "--bench", bench, "--no-run"], bench, "bench",
+                          os.path.join(OUT, label))
 
 
 def timings(home, since):
