@@ -95,6 +95,7 @@ def main():
     parser.add_argument("--top", type=int, default=12, help="functions listed (12)")
     parser.add_argument("extra", nargs="*", help="more `glint render` arguments, after --")
     args = parser.parse_args()
+    args.mesh = os.path.abspath(args.mesh)  # glint runs in the repository root
     if not os.path.exists(args.mesh):
         sys.exit(f"no mesh at {args.mesh} (pass --mesh PATH)")
     width, _, height = args.size.partition("x")
