@@ -96,6 +96,16 @@ pub enum MeshDataError {
     },
 }
 
+/// The [`RayShear`] of each ray of a packet, all made at once (spare
+/// slots get a fixed, unused one).
+#[inline(always)]
+fn packet_shears(rays: &[Ray]) -> [RayShear; PACKET] {
+    std::array::from_fn(|r| match rays.get(r) {
+        Some(ray) => RayShear::new(ray.o, ray.d),
+        None => RayShear::new(Vec3::ZERO, Vec3::Z),
+    })
+}
+
 /// The [`RayShear`] of each ray of a packet of closest-hit rays, made when
 /// the ray first reaches a leaf: most rays of a camera packet that passes a
 /// mesh by reach none, and a shear costs a division (made for all sixteen
@@ -106,16 +116,6 @@ pub enum MeshDataError {
 struct PacketShears<'a> {
     rays: &'a [Ray],
     made: [Option<RayShear>; PACKET],
-}
-
-/// The [`RayShear`] of each ray of a packet, all made at once (spare
-/// slots get a fixed, unused one).
-#[inline(always)]
-fn packet_shears(rays: &[Ray]) -> [RayShear; PACKET] {
-    std::array::from_fn(|r| match rays.get(r) {
-        Some(ray) => RayShear::new(ray.o, ray.d),
-        None => RayShear::new(Vec3::ZERO, Vec3::Z),
-    })
 }
 
 impl<'a> PacketShears<'a> {
