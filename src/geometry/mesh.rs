@@ -27,8 +27,8 @@ pub struct Mesh {
     /// [`Mesh::blocks`], each leaf names its first block rather than its
     /// first triangle (see [`Mesh::leaf_triangles`]).
     pub bvh: Bvh8,
-    /// For meshes of at most [`LEAF_BLOCK_TRIANGLES`] triangles: every
-    /// leaf's triangles, four to a block in structure-of-arrays form (the
+    /// For meshes of more than [`SMALL_MESH_TRIANGLES`] triangles, where
+    /// memory allows (see [`Mesh::new`]): every leaf's triangles, four to a block in structure-of-arrays form (the
     /// three vertices, as the watertight test uses them; a last block's
     /// spare lanes repeat its first triangle), the blocks of sibling leaves
     /// next to each other. A leaf is then tested without gathering its vertices through
@@ -65,11 +65,6 @@ const LANE_SET: [Vec4; 1 << LANES] = {
     }
     table
 };
-
-/// Meshes up to this many triangles keep their leaves' triangles in blocks
-/// (about 50 bytes per triangle besides the 52 of vertices, indices and
-/// BVH: at most about 420 MB a mesh); larger ones gather their vertices.
-pub const LEAF_BLOCK_TRIANGLES: usize = 1 << 23;
 
 /// Meshes up to this many triangles keep lanes per triangle and face normals
 /// (160 bytes per triangle, at most 655 KB a mesh) rather than leaf blocks.
@@ -138,12 +133,28 @@ impl<'a> PacketShears<'a> {
 impl Mesh {
     /// Checks the arrays, builds the BVH (binned SAH, in parallel) and
     /// reorders the triangles into its leaf order. `normals` and `uvs` are
-    /// per vertex or empty.
+    /// per vertex or empty. Meshes of more than [`SMALL_MESH_TRIANGLES`]
+    /// triangles keep their leaves' triangles in blocks where these take
+    /// less than half the memory left, whatever the mesh's size.
     pub fn new(
         positions: Vec<glam::Vec3>,
         triangles: Vec<[u32; 3]>,
         normals: Vec<glam::Vec3>,
         uvs: Vec<Vec2>,
+    ) -> Result<Mesh, MeshDataError> {
+        Self::build(positions, triangles, normals, uvs, true)
+    }
+
+    /// [`Mesh::new`], with leaf blocks only if `blocks` (and memory)
+    /// allow: the tests build meshes without them, as a machine short of
+    /// memory does, to check that gathering the vertices finds the same
+    /// hits.
+    fn build(
+        positions: Vec<glam::Vec3>,
+        triangles: Vec<[u32; 3]>,
+        normals: Vec<glam::Vec3>,
+        uvs: Vec<Vec2>,
+        blocks: bool,
     ) -> Result<Mesh, MeshDataError> {
         if triangles.len() >= MAX_PRIMITIVES {
             return Err(MeshDataError::TooManyTriangles {
@@ -208,7 +219,7 @@ impl Mesh {
             face_normals: Vec::new(),
         };
         let n = mesh.triangles.len();
-        let leaves: Vec<(u32, u32)> = if n > SMALL_MESH_TRIANGLES && n <= LEAF_BLOCK_TRIANGLES {
+        let leaves: Vec<(u32, u32)> = if blocks && n > SMALL_MESH_TRIANGLES {
             mesh.bvh.leaves().collect()
         } else {
             Vec::new()

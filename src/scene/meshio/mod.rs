@@ -112,8 +112,7 @@ impl RawMesh {
 /// the arrays read from the file: primitive references (32 bytes), the binary
 /// nodes (about 32), the reordered triangles (12) and the wide BVH, rounded
 /// up (the 25.6M-triangle test mesh peaked at 93 bytes per triangle with its
-/// file's data). The leaf blocks of meshes up to
-/// [`crate::geometry::LEAF_BLOCK_TRIANGLES`] (about 50 bytes per triangle)
+/// file's data). The leaf blocks of meshes (about 50 bytes per triangle)
 /// come after the binary nodes are freed, and are left out when they would
 /// take more than half the memory left.
 pub const BUILD_BYTES_PER_TRIANGLE: u64 = 100;
