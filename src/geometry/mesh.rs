@@ -28,11 +28,12 @@ pub struct Mesh {
     /// first triangle (see [`Mesh::leaf_triangles`]).
     pub bvh: Bvh8,
     /// For meshes of more than [`SMALL_MESH_TRIANGLES`] triangles, where
-    /// memory allows (see [`Mesh::new`]): every leaf's triangles, four to a block in structure-of-arrays form (the
-    /// three vertices, as the watertight test uses them; a last block's
-    /// spare lanes repeat its first triangle), the blocks of sibling leaves
-    /// next to each other. A leaf is then tested without gathering its vertices through
-    /// the index array (Wald et al. 2014, Embree's `Triangle4v`), and the
+    /// memory allows (see [`Mesh::new`]): every leaf's triangles, four to
+    /// a block in structure-of-arrays form (the three vertices, as the
+    /// watertight test uses them; a last block's spare lanes repeat its
+    /// first triangle), the blocks of sibling leaves next to each other. A
+    /// leaf is then tested without gathering its vertices through the
+    /// index array (Wald et al. 2014, Embree's `Triangle4v`), and the
     /// tree's leaf words point at the blocks directly, as tinybvh's
     /// `BVH8_CPU` and Embree's BVH8 leaves do: no lookup stands between a
     /// node and its triangles.
