@@ -928,11 +928,17 @@ fn run_info(path: &Path) -> Result<()> {
     let mut bounds = glint::math::Aabb::EMPTY;
     let (mut vertices, mut triangles, mut nodes, mut bvh_bytes, mut bytes) = (0, 0, 0, 0, 0);
     let mut seen = std::collections::HashSet::new();
+    // Distinct meshes large enough for leaf blocks, and those left without.
+    let (mut large, mut gathering) = (0u64, 0u64);
     for part in &model.parts {
         let instance =
             glint::geometry::MeshInstance::new(part.mesh.clone(), part.transform.as_ref());
         bounds = bounds.union(&instance.bounds());
         if seen.insert(std::sync::Arc::as_ptr(&part.mesh)) {
+            if let Some(kept) = part.mesh.leaf_blocks() {
+                large += 1;
+                gathering += u64::from(!kept);
+            }
             vertices += part.mesh.positions.len();
             triangles += part.mesh.triangles.len();
             nodes += part.mesh.bvh.nodes.len();
@@ -971,6 +977,17 @@ fn run_info(path: &Path) -> Result<()> {
         per(bytes),
         per(bvh_bytes)
     );
+    if gathering > 0 {
+        println!(
+            "  leaf blocks  left out of {gathering} of {} for lack of memory: their leaf tests gather vertices (slower rays)",
+            count(large, "large mesh", "large meshes")
+        );
+    } else if large > 0 {
+        println!(
+            "  leaf blocks  kept ({}: each leaf's triangles stored as the test reads them)",
+            count(large, "large mesh", "large meshes")
+        );
+    }
     if let Some(peak) = peak_rss_bytes() {
         println!("  peak RSS     {:.1} MB", peak as f64 / 1e6);
     }

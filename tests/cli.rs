@@ -400,3 +400,44 @@ fn a_mesh_too_large_for_memory_is_a_clear_error() {
         "{err}"
     );
 }
+
+/// `glint info` says whether a large mesh keeps its leaf blocks (here, a
+/// grid of 7,200 triangles, above the 4,096 of a small mesh, on a machine
+/// with memory to spare); a small mesh gets no such line.
+#[test]
+fn info_reports_leaf_blocks_of_a_large_mesh() {
+    let n = 60;
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        (n + 1) * (n + 1),
+        2 * n * n
+    );
+    for j in 0..=n {
+        for i in 0..=n {
+            ply += &format!("{i} {j} {}\n", (i * j) % 7);
+        }
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            ply += &format!(
+                "3 {a} {} {}\n3 {a} {} {}\n",
+                a + 1,
+                a + n + 2,
+                a + n + 2,
+                a + n + 1
+            );
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("grid.ply"), ply).unwrap();
+    std::fs::write(dir.path().join("oct.ply"), OCTAHEDRON).unwrap();
+    let out = glint(dir.path(), &["info", "grid.ply"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("triangles    7,200"), "{text}");
+    assert!(text.contains("leaf blocks  kept (1 large mesh"), "{text}");
+    let out = glint(dir.path(), &["info", "oct.ply"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("leaf blocks"));
+}

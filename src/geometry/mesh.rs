@@ -283,6 +283,15 @@ impl Mesh {
         self.bvh.bounds.unwrap_or(Aabb::EMPTY)
     }
 
+    /// How a leaf reaches its triangles: `None` for small meshes (lanes per
+    /// triangle, [`SMALL_MESH_TRIANGLES`]), `Some(true)` where the mesh
+    /// keeps leaf blocks, `Some(false)` where they were left out for lack
+    /// of memory (every leaf test then gathers its vertices through the
+    /// index array, which slows rays down).
+    pub fn leaf_blocks(&self) -> Option<bool> {
+        (self.triangles.len() > SMALL_MESH_TRIANGLES).then_some(!self.blocks.is_empty())
+    }
+
     /// Bytes of vertex, index and BVH data.
     pub fn bytes(&self) -> usize {
         (self.blocks.len() + self.lanes.len()) * std::mem::size_of::<TriangleLanes>()

@@ -80,6 +80,12 @@ fn gathered_vertices_give_the_hits_of_the_blocks() {
     let without = Mesh::build(v, f, vec![], vec![], false).unwrap();
     assert!(!with.blocks.is_empty());
     assert!(without.blocks.is_empty() && without.lanes.is_empty());
+    assert_eq!(
+        (with.leaf_blocks(), without.leaf_blocks()),
+        (Some(true), Some(false))
+    );
+    let (v, f) = torus(2.0, 0.6, 16, 8);
+    assert_eq!(Mesh::new(v, f, vec![], vec![]).unwrap().leaf_blocks(), None);
     assert_eq!(without.validate_bvh(), Ok(()));
     let mut rng = Pcg32::new(21, 5);
     let mut u = |s: f32| (rng.next_f32() * 2.0 - 1.0) * s;
