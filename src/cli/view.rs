@@ -8,7 +8,7 @@
 //! samples are added with [`Progressive`], which is exact, and converted to
 //! 8-bit sRGB as the PNG writer does.
 
-use crate::{MeshView, load_scene, parse_integrator};
+use super::{MeshView, load_scene, parse_integrator};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use glint::math::Vec3;
