@@ -206,8 +206,10 @@ type PacketCase<'a> = (
 );
 
 /// The primary and shadow rays again, traced as packets of 16 rays
-/// (`Mesh::intersect_packet`, `Mesh::occludes_packet`): the primary rays
-/// of 4×4 pixel blocks, the shadow rays of their hits in that order.
+/// (`Mesh::intersect_packet`, `Mesh::occludes_packet`, as the renderer
+/// traces them: ray by ray where their spacing against the triangles
+/// makes packets lose, see `Mesh::packet_pays`): the primary rays of 4×4
+/// pixel blocks, the shadow rays of their hits in that order.
 /// `bvh/primary_packets/MESH` and `bvh/shadow_packets/MESH`, in rays per
 /// second like the single-ray figures, after checking that the packets
 /// hit as often as single rays.

@@ -21,7 +21,8 @@ faster during the run does not favour either side. Each round prints its
 ratios; the summary gives, per mesh and kind, the medians over rounds of
 both figures, their ratio, and the range of the rounds' ratios. Then
 glint's packets of 16 rays (`bvh/primary_packets/MESH`,
-`bvh/shadow_packets/MESH`: the same rays in 4x4 pixel blocks) against the
+`bvh/shadow_packets/MESH`: the same rays in 4x4 pixel blocks, traced as
+the renderer traces them, one by one where packets would lose) against the
 same BVH8_CPU figures, and glint's primary packets against the faster of
 tinybvh's two 256-ray packet kernels (`BVH 256-pkt`, primary rays only).
 

@@ -591,7 +591,10 @@ fn crossings_of_many_surfaces_and_from_inside() {
 }
 
 /// Packets of up to 16 rays (`Mesh::intersect_packet` and
-/// `Mesh::occludes_packet`) against the same rays one by one: coherent 4×4 blocks of camera rays, incoherent rays of
+/// `Mesh::occludes_packet`, and the same always traced as packets,
+/// `Mesh::intersect_as_packet` and `Mesh::occludes_as_packet`, since the
+/// first may trace a packet ray by ray) against the same rays one by one:
+/// coherent 4×4 blocks of camera rays, incoherent rays of
 /// mixed octants, segments cut short, and rays that the packet hands to the
 /// single-ray traversal (`t_min < 0`). Each ray must get the same `t`, bit
 /// for bit, and the same triangle or another one hit at exactly that `t`;
@@ -644,15 +647,17 @@ fn packets_match_single_rays() {
                         .collect()
                 }
             };
-            let mut got = vec![None; n];
+            let (mut got, mut got_as) = (vec![None; n], vec![None; n]);
             let mut c = TraceCounters::default();
             m.intersect_packet(&rays, &mut c, &mut got);
-            let mut blocked = vec![false; n];
+            m.intersect_as_packet(&rays, &mut c, &mut got_as);
+            let (mut blocked, mut blocked_as) = (vec![false; n], vec![false; n]);
             m.occludes_packet(&rays, &mut c, &mut blocked);
-            for (ray, b) in rays.iter().zip(&blocked) {
+            m.occludes_as_packet(&rays, &mut c, &mut blocked_as);
+            for (ray, b) in rays.iter().cycle().zip(blocked.iter().chain(&blocked_as)) {
                 assert_eq!(*b, m.occludes_object(ray, &mut c), "mesh {k}, packet {p}");
             }
-            for (ray, g) in rays.iter().zip(&got) {
+            for (ray, g) in rays.iter().cycle().zip(got.iter().chain(&got_as)) {
                 let want = m.intersect_object(ray, &mut c);
                 match (g, want) {
                     (Some(g), Some(w)) => {

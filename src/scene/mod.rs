@@ -391,8 +391,9 @@ impl Scene {
 
     /// [`Scene::intersect`] for each ray of `rays` (at most [`PACKET`],
     /// coherent ones, such as neighbouring camera rays) into `out`. In a
-    /// scene of few objects, each mesh takes all the rays at once as a
-    /// packet ([`crate::geometry::MeshInstance::intersect_packet`]) and
+    /// scene of few objects, each mesh takes all the rays at once
+    /// ([`crate::geometry::MeshInstance::intersect_packet`]: as a packet
+    /// where their spacing against its triangles makes that pay) and
     /// other shapes take them one by one; a scene with a top-level BVH
     /// traces the mesh merged from its small meshes (see [`Merged`]) as a
     /// packet, and the rest ray by ray. Each ray gets the same `t`, object

@@ -113,3 +113,53 @@ fn gathered_vertices_give_the_hits_of_the_blocks() {
         "{hits} hits, {blocked} occluded"
     );
 }
+
+/// [`Mesh::packet_pays`] on a flat 100×100 grid of unit squares cut in
+/// two (mean triangle area 1/2) under a 4×4 block of parallel rays: the
+/// rays are traced together while each covers at most
+/// [`PACKET_TRIANGLES_PER_RAY`] triangle areas where they meet the grid,
+/// one by one beyond; a closest-hit packet that misses the bounds goes ray
+/// by ray, a shadow packet that does stays a packet; and the mean area is
+/// the grid's.
+#[test]
+fn packets_are_traced_together_while_their_rays_are_close() {
+    let n = 100u32;
+    let positions: Vec<glam::Vec3> = (0..=n)
+        .flat_map(|y| (0..=n).map(move |x| glam::Vec3::new(x as f32, y as f32, 0.0)))
+        .collect();
+    let triangles: Vec<[u32; 3]> = (0..n)
+        .flat_map(|y| (0..n).map(move |x| (x, y)))
+        .flat_map(|(x, y)| {
+            let v = y * (n + 1) + x;
+            [[v, v + 1, v + n + 2], [v, v + n + 2, v + n + 1]]
+        })
+        .collect();
+    let m = Mesh::new(positions, triangles, vec![], vec![]).unwrap();
+    assert!((m.mean_triangle_area - 0.5).abs() < 1e-6);
+    // Rays 1 above the grid, straight down, `step` apart.
+    let block = |x0: f32, step: f32| -> Vec<Ray> {
+        (0..16)
+            .map(|i| {
+                let (i, j) = ((i % 4) as f32, (i / 4) as f32);
+                let o = Vec3::new(x0 + step * i, 50.0 + step * j, 1.0);
+                Ray::new(o, Vec3::new(0.0, 0.0, -1.0))
+            })
+            .collect()
+    };
+    // The corners are 3·√2·step apart: 18·step² over 16 rays, against
+    // 4 · 1/2 = 2 per ray, so the limit lies at step = 4/3.
+    for (step, together) in [(0.01, true), (1.3, true), (1.4, false), (5.0, false)] {
+        for closest in [true, false] {
+            let rays = block(10.0, step);
+            assert_eq!(m.packet_pays(&rays, closest), together, "{step}");
+        }
+    }
+    // Beside the grid (x from 200): no corner enters the bounds.
+    let past = block(200.0, 0.01);
+    assert!(!m.packet_pays(&past, true));
+    assert!(m.packet_pays(&past, false));
+    // One corner outside, the other in: judged where that one enters.
+    let mut half = block(95.0, 0.01);
+    half[0].o.x = -10.0;
+    assert!(!m.packet_pays(&half, true));
+}
