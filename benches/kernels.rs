@@ -8,8 +8,9 @@
 //! - `kernels/render/MESH`: the whole render (rays, shading, film);
 //! - `kernels/closest/MESH`: the closest-hit kernel on its camera rays;
 //! - `kernels/closest_packets/MESH`: the same rays in the packets of 16
-//!   that the render traces (16 pixels of a tile's row: with a width that
-//!   is a multiple of 16, 16 consecutive camera rays);
+//!   that the render traces (4×4 blocks of pixels: a tile's pixels in Z
+//!   order), as it traces them (ray by ray where `Mesh::packet_pays` says
+//!   packets lose);
 //! - `kernels/any/MESH`: the any-hit kernel on its shadow rays;
 //! - `kernels/any_packets/MESH`: the same rays in packets of 16 (the
 //!   render sends the shadow rays of a packet of camera rays together,
@@ -22,7 +23,11 @@
 //!
 //! Meshes: a generated bumpy icosphere of 1.31M triangles (always) and the
 //! meshes of `../shared/data/` when that folder is there (it says so when it
-//! is not).
+//! is not); or, where `GLINT_KERNELS_MESHES` is set, only the files it lists
+//! (separated by `:`), each as `PATH` (seen from the CLI's default view, y
+//! up) or `PATH@VX,VY,VZ@UX,UY,UZ` (as `--view` and `--up`), for example
+//! `GLINT_KERNELS_MESHES=/tmp/big.ply@-0.3,1,0.2@0,0,1` for the
+//! 25.6M-triangle mesh of `../shared/data/gen_big.py`.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glint::accel::PACKET;
@@ -30,7 +35,7 @@ use glint::geometry::testgen::bumpy_icosphere;
 use glint::geometry::{Mesh, Shape, TraceCounters};
 use glint::math::Vec3;
 use glint::math::{Color, Ray};
-use glint::render::{Counters, PixelSampler, Recorder, Tracer, render};
+use glint::render::{Counters, PixelSampler, Recorder, TILE_SIZE, Tracer, render};
 use glint::scene::meshio::{Model, ModelPart, load_mesh_file};
 use glint::scene::{Scene, SceneFile, mesh_scene};
 use glint::settings::{IntegratorKind, RenderSettings};
@@ -59,28 +64,42 @@ impl Recorder for ShadowRays {
     }
 }
 
+/// The pixels of a `w`×`h` frame in the order the render traces their
+/// camera rays: tile by tile ([`TILE_SIZE`]²), each tile's pixels in Z
+/// order (as `render/tile.rs` orders them), so that 16 consecutive rays
+/// are a 4×4 block of pixels.
+fn render_order(w: u32, h: u32) -> Vec<(u32, u32)> {
+    let bits = TILE_SIZE.ilog2();
+    let deal = |code: u32, k: u32| (0..bits).fold(0, |v, b| v | (code >> (2 * b + k) & 1) << b);
+    let mut out = Vec::with_capacity((w * h) as usize);
+    for ty in (0..h).step_by(TILE_SIZE as usize) {
+        for tx in (0..w).step_by(TILE_SIZE as usize) {
+            for code in 0..TILE_SIZE * TILE_SIZE {
+                let (x, y) = (tx + deal(code, 0), ty + deal(code, 1));
+                if x < w && y < h {
+                    out.push((x, y));
+                }
+            }
+        }
+    }
+    out
+}
+
 /// The camera rays of a 1-spp render (through pixel centres, as
-/// `render_tile` makes them) and the shadow rays ray casting sends from
-/// their hits.
+/// `render_tile` makes them, in the order of [`render_order`]) and the
+/// shadow rays ray casting sends from their hits.
 fn render_rays(scene: &Scene, settings: &RenderSettings) -> (Vec<Ray>, Vec<Ray>) {
     let (w, h) = (settings.width, settings.height);
-    let camera: Vec<Ray> = (0..w * h)
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            scene.camera.ray(
-                x as f32 + 0.5,
-                y as f32 + 0.5,
-                settings.width,
-                settings.height,
-            )
-        })
+    let pixels = render_order(w, h);
+    let camera: Vec<Ray> = pixels
+        .iter()
+        .map(|&(x, y)| scene.camera.ray(x as f32 + 0.5, y as f32 + 0.5, w, h))
         .collect();
     let integrator = glint::render::Raycast {
         light_samples: settings.light_samples,
     };
     let mut shadow = ShadowRays(Vec::new());
-    for (i, ray) in camera.iter().enumerate() {
-        let (x, y) = (i as u32 % w, i as u32 / w);
+    for (ray, &(x, y)) in camera.iter().zip(&pixels) {
         let mut sampler = PixelSampler::new(x, y, 0);
         let mut counters = Counters::default();
         integrator.trace(scene, ray, &mut sampler, &mut counters, &mut shadow);
@@ -88,7 +107,47 @@ fn render_rays(scene: &Scene, settings: &RenderSettings) -> (Vec<Ray>, Vec<Ray>)
     (camera, shadow.0)
 }
 
+/// `x,y,z` → a vector.
+fn vec3(s: &str) -> Option<Vec3> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse().ok())
+        .collect::<Option<_>>()?;
+    match v[..] {
+        [x, y, z] => Some(Vec3::new(x, y, z)),
+        _ => None,
+    }
+}
+
+/// The meshes of `GLINT_KERNELS_MESHES` (see the module's documentation).
+fn listed_meshes(list: &str) -> Vec<(String, Model, Vec3, Vec3)> {
+    let mut out = Vec::new();
+    for entry in list.split(':').filter(|e| !e.is_empty()) {
+        let mut parts = entry.split('@');
+        let path = Path::new(parts.next().unwrap_or_default());
+        let (view, up) = match (parts.next(), parts.next()) {
+            (None, _) => (Some(Vec3::new(0.35, 0.3, 1.0)), Some(Vec3::Y)),
+            (Some(v), Some(u)) => (vec3(v), vec3(u)),
+            (Some(_), None) => (None, None),
+        };
+        let (Some(view), Some(up)) = (view, up) else {
+            panic!("GLINT_KERNELS_MESHES: `{entry}` is not PATH or PATH@VX,VY,VZ@UX,UY,UZ");
+        };
+        let name = path
+            .file_stem()
+            .map_or(entry.into(), |s| s.to_string_lossy().into_owned());
+        match load_mesh_file(path) {
+            Ok(model) => out.push((name, model, view, up)),
+            Err(e) => eprintln!("note: skipping {}: {e}", path.display()),
+        }
+    }
+    out
+}
+
 fn meshes() -> Vec<(String, Model, Vec3, Vec3)> {
+    if let Ok(list) = std::env::var("GLINT_KERNELS_MESHES") {
+        return listed_meshes(&list);
+    }
     let default_view = Vec3::new(0.35, 0.3, 1.0);
     let (v, f) = bumpy_icosphere(8);
     let generated = Model {

@@ -124,9 +124,39 @@ fn deal<'a, T>(
 /// together (see [`Integrator::radiance_stream`]).
 const STREAM_SPP: u32 = 16;
 
+/// The pixels of a tile in Morton (Z) order: entry `code` is `(dx, dy)`,
+/// the bits of `code` dealt alternately to `dx` and `dy`.
+const Z_ORDER: [(u8, u8); (TILE_SIZE * TILE_SIZE) as usize] = {
+    assert!(TILE_SIZE.is_power_of_two() && TILE_SIZE <= 256);
+    let mut table = [(0u8, 0u8); (TILE_SIZE * TILE_SIZE) as usize];
+    let mut code = 0;
+    while code < table.len() {
+        let (mut x, mut y, mut bit) = (0, 0, 0);
+        while 1 << bit < TILE_SIZE {
+            x |= (code >> (2 * bit) & 1) << bit;
+            y |= (code >> (2 * bit + 1) & 1) << bit;
+            bit += 1;
+        }
+        table[code] = (x as u8, y as u8);
+        code += 1;
+    }
+    table
+};
+
 /// The radiance of every sample of the tile (pixel by pixel in rows, each
 /// pixel's samples in order), traced many at a time by the integrator; `None`
 /// if it cannot (nothing is then counted).
+///
+/// In a scene whose rays are traced in packets (meshes: see
+/// [`Scene::intersect_packet`]) the camera rays go to the integrator with
+/// the pixels in Z order ([`Z_ORDER`]) rather than row by row, so that the
+/// rays a packet takes come from a compact block of pixels: sixteen rays
+/// of one sample per pixel are a 4×4 block, not a sixteen-pixel stretch of
+/// a row. (`glint render` of igea, the bunny and lucy, 1080p: 0.91, 0.93 and
+/// 0.91 of the time in rows.) Scenes of analytic shapes, traced in SIMD
+/// batches ([`Scene::batchable`]), keep rows, written straight into place:
+/// the Whitted frame took 4 % longer in Z order. Each pixel's radiance depends on its own samples alone,
+/// so the order changes no pixel.
 fn stream_tile<I: Integrator>(
     scene: &Scene,
     integrator: &I,
@@ -136,46 +166,70 @@ fn stream_tile<I: Integrator>(
 ) -> Option<Vec<Color>> {
     const CHUNK: usize = 1024;
     thread_local! {
-        // The camera rays of a chunk (kept: a fresh array per tile costs
-        // more than a Whitted tile's shading).
-        static RAYS: std::cell::RefCell<Vec<Ray>> = const { std::cell::RefCell::new(Vec::new()) };
+        // The camera rays of a chunk, and their radiance (kept: a fresh
+        // array per tile costs more than a Whitted tile's shading).
+        static RAYS: std::cell::RefCell<(Vec<Ray>, Vec<Color>)> =
+            const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
     }
     let samples = settings.samples();
     let (width, height) = (settings.width, settings.height);
     let mut points = Vec::with_capacity(CHUNK);
-    let pixels = tile.rows.iter().map(|r| r.len()).sum::<usize>();
+    // Where each point's radiance goes in `out` (for rays in blocks).
+    let mut places = Vec::with_capacity(CHUNK);
+    let (w, h) = (tile.rows.first().map_or(0, |r| r.len()), tile.rows.len());
     // The last tile's array, if given back ([`recycle`]): every element is
     // written before the tile is given out, so it need not be cleared.
     let mut out = STREAMED.take();
-    out.resize(pixels * samples.count as usize, Color::ZERO);
+    out.resize(w * h * samples.count as usize, Color::ZERO);
+    let blocks = !scene.batchable();
+    // Rays in rows fill `out` in order; rays in blocks go to their places.
     let mut done = 0;
-    let mut trace = |points: &mut Vec<(f32, f32)>, done: &mut usize| {
+    let mut trace = |points: &mut Vec<(f32, f32)>, places: &mut Vec<usize>, out: &mut [Color]| {
         let n = points.len();
-        RAYS.with_borrow_mut(|rays| {
+        RAYS.with_borrow_mut(|(rays, radiance)| {
             rays.resize(CHUNK, Ray::new(Vec3::ZERO, Vec3::X));
             scene.camera.rays(points, width, height, &mut rays[..n]);
             points.clear();
-            let ok =
-                integrator.radiance_stream(scene, &rays[..n], counters, &mut out[*done..*done + n]);
-            *done += n;
+            let ok = if blocks {
+                radiance.resize(CHUNK, Color::ZERO);
+                let ok =
+                    integrator.radiance_stream(scene, &rays[..n], counters, &mut radiance[..n]);
+                for (&place, &l) in places.iter().zip(&radiance[..n]) {
+                    out[place] = l;
+                }
+                places.clear();
+                ok
+            } else {
+                integrator.radiance_stream(scene, &rays[..n], counters, &mut out[done..done + n])
+            };
+            done += n;
             ok
         })
     };
-    for (dy, row) in tile.rows.iter().enumerate() {
-        let y = tile.y0 + dy as u32;
-        for dx in 0..row.len() {
-            let x = tile.x0 + dx as u32;
-            let mut pixel = PixelSamples::new(x, y);
-            for index in samples.start..samples.start + samples.count {
-                let (u, v) = pixel.offset(index);
-                points.push((x as f32 + u, y as f32 + v));
-                if points.len() == CHUNK && !trace(&mut points, &mut done) {
-                    return None;
-                }
+    for (code, &(x, y)) in Z_ORDER.iter().enumerate() {
+        let (dx, dy) = if blocks {
+            (x as usize, y as usize)
+        } else {
+            (code % TILE_SIZE as usize, code / TILE_SIZE as usize)
+        };
+        if dx >= w || dy >= h {
+            continue;
+        }
+        let (x, y) = (tile.x0 + dx as u32, tile.y0 + dy as u32);
+        let mut pixel = PixelSamples::new(x, y);
+        let first = (dy * w + dx) * samples.count as usize;
+        for (k, index) in (samples.start..samples.start + samples.count).enumerate() {
+            let (u, v) = pixel.offset(index);
+            points.push((x as f32 + u, y as f32 + v));
+            if blocks {
+                places.push(first + k);
+            }
+            if points.len() == CHUNK && !trace(&mut points, &mut places, &mut out) {
+                return None;
             }
         }
     }
-    if !points.is_empty() && !trace(&mut points, &mut done) {
+    if !points.is_empty() && !trace(&mut points, &mut places, &mut out) {
         return None;
     }
     Some(out)
@@ -461,5 +515,37 @@ fn finish_pixel(
                 *s = *sum;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`Z_ORDER`] lists every pixel of a tile once, and each aligned run
+    /// of 4, 16 or 64 entries is a square block of pixels (2×2, 4×4, 8×8):
+    /// the pixels of a packet of 16 rays at 4 and 1 samples per pixel.
+    #[test]
+    fn z_order_visits_every_pixel_once_in_blocks() {
+        let n = TILE_SIZE as usize;
+        let mut seen = vec![false; n * n];
+        for &(x, y) in &Z_ORDER {
+            let k = y as usize * n + x as usize;
+            assert!(!seen[k], "({x}, {y}) twice");
+            seen[k] = true;
+        }
+        assert!(seen.iter().all(|&s| s));
+        for (run, side) in [(4, 2), (16, 4), (64, 8)] {
+            for block in Z_ORDER.chunks(run) {
+                let (x0, y0) = block[0];
+                assert!((x0 as usize).is_multiple_of(side) && (y0 as usize).is_multiple_of(side));
+                for &(x, y) in block {
+                    assert!((x0..x0 + side as u8).contains(&x), "{block:?}");
+                    assert!((y0..y0 + side as u8).contains(&y), "{block:?}");
+                }
+            }
+        }
+        // Row-major within the smallest block: (0,0), (1,0), (0,1), (1,1).
+        assert_eq!(Z_ORDER[..4], [(0, 0), (1, 0), (0, 1), (1, 1)]);
     }
 }
