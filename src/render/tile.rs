@@ -174,14 +174,14 @@ fn stream_tile<I: Integrator>(
     let samples = settings.samples();
     let (width, height) = (settings.width, settings.height);
     let mut points = Vec::with_capacity(CHUNK);
+    let blocks = !scene.batchable();
     // Where each point's radiance goes in `out` (for rays in blocks).
-    let mut places = Vec::with_capacity(CHUNK);
+    let mut places = Vec::with_capacity(if blocks { CHUNK } else { 0 });
     let (w, h) = (tile.rows.first().map_or(0, |r| r.len()), tile.rows.len());
     // The last tile's array, if given back ([`recycle`]): every element is
     // written before the tile is given out, so it need not be cleared.
     let mut out = STREAMED.take();
     out.resize(w * h * samples.count as usize, Color::ZERO);
-    let blocks = !scene.batchable();
     // Rays in rows fill `out` in order; rays in blocks go to their places.
     let mut done = 0;
     let mut trace = |points: &mut Vec<(f32, f32)>, places: &mut Vec<usize>, out: &mut [Color]| {
@@ -206,15 +206,8 @@ fn stream_tile<I: Integrator>(
             ok
         })
     };
-    for (code, &(x, y)) in Z_ORDER.iter().enumerate() {
-        let (dx, dy) = if blocks {
-            (x as usize, y as usize)
-        } else {
-            (code % TILE_SIZE as usize, code / TILE_SIZE as usize)
-        };
-        if dx >= w || dy >= h {
-            continue;
-        }
+    // A pixel's samples; false where the integrator refused them.
+    let mut pixel = |dx: usize, dy: usize| {
         let (x, y) = (tile.x0 + dx as u32, tile.y0 + dy as u32);
         let mut pixel = PixelSamples::new(x, y);
         let first = (dy * w + dx) * samples.count as usize;
@@ -225,7 +218,24 @@ fn stream_tile<I: Integrator>(
                 places.push(first + k);
             }
             if points.len() == CHUNK && !trace(&mut points, &mut places, &mut out) {
+                return false;
+            }
+        }
+        true
+    };
+    if blocks {
+        for &(dx, dy) in &Z_ORDER {
+            let (dx, dy) = (dx as usize, dy as usize);
+            if dx < w && dy < h && !pixel(dx, dy) {
                 return None;
+            }
+        }
+    } else {
+        for dy in 0..h {
+            for dx in 0..w {
+                if !pixel(dx, dy) {
+                    return None;
+                }
             }
         }
     }
