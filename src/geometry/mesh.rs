@@ -529,7 +529,7 @@ impl Mesh {
     /// tests visit nodes for one or two rays each. (Rays traced in a
     /// 1080p frame, each packet timed both ways and the packets binned by
     /// that ratio: on lucy and its subdivisions to 25.6M triangles and on
-    /// the bumpy icosphere, packets took 0.7–0.9 of the single rays' time
+    /// the bumpy icosphere, packets took 0.6–0.9 of the single rays' time
     /// below 2 triangle areas per ray, about 1.0 at 4, and 1.1–1.45 from
     /// 16 up, the same on every mesh.) A packet of closest-hit rays
     /// neither of whose corner rays enters the bounds is taken as passing
