@@ -152,11 +152,12 @@ const Z_ORDER: [(u8, u8); (TILE_SIZE * TILE_SIZE) as usize] = {
 /// the pixels in Z order ([`Z_ORDER`]) rather than row by row, so that the
 /// rays a packet takes come from a compact block of pixels: sixteen rays
 /// of one sample per pixel are a 4×4 block, not a sixteen-pixel stretch of
-/// a row. (`glint render` of igea, the bunny and lucy, 1080p: 0.91, 0.93 and
-/// 0.91 of the time in rows.) Scenes of analytic shapes, traced in SIMD
-/// batches ([`Scene::batchable`]), keep rows, written straight into place:
-/// in Z order the Whitted frame took 4 % longer. Each pixel's radiance depends on its own samples alone,
-/// so the order changes no pixel.
+/// a row. (`glint render` of igea, the bunny and lucy, 1080p: 0.91, 0.93
+/// and 0.91 of the time in rows.) Scenes of analytic shapes, traced in
+/// SIMD batches ([`Scene::batchable`]), keep rows, written straight into
+/// place: in Z order the Whitted frame took 4 % longer. Each pixel's
+/// radiance depends on its own samples alone, so the order changes no
+/// pixel.
 fn stream_tile<I: Integrator>(
     scene: &Scene,
     integrator: &I,
