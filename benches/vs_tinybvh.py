@@ -137,6 +137,20 @@ def ply_faces(mesh):
     return 0
 
 
+# The Python packages this script uses, at the versions
+# ../shared/anchors/README.md measured with; installed from PyPI when missing.
+PACKAGES = {"numpy": "numpy==2.4.6", "trimesh": "trimesh==5.2.0"}
+
+
+def ensure_packages():
+    """Installs the missing ones of `PACKAGES` (the bumpy icosphere and the
+    conversion of ASCII PLY and OBJ need them), with pip for this Python."""
+    import importlib.util
+    missing = [spec for name, spec in PACKAGES.items() if importlib.util.find_spec(name) is None]
+    if missing:
+        run([sys.executable, "-m", "pip", "install", "--quiet"] + missing)
+
+
 def binary_ply(mesh):
     """`mesh` itself if it is a binary little-endian PLY, which tinybvh's
     bench.cpp reads; otherwise (an ASCII PLY such as the Stanford bunny,
@@ -167,6 +181,7 @@ def main():
     if not os.path.isfile(os.path.join(tb, "tiny_bvh.h")):
         sys.exit(f"{tb}/tiny_bvh.h is not there: this script needs ../shared/anchors/tinybvh")
     os.makedirs(OUT, exist_ok=True)
+    ensure_packages()
     src = patched_copy(tb)
     run(["g++", "-O3", "-march=native", "-fopenmp", "-std=c++20", "-I" + src,
          os.path.join(src, "bench.cpp"), "-o", os.path.join(OUT, "bench_native"), "-lpthread"])
