@@ -259,7 +259,8 @@ pub fn intersect_watertight_lanes(
         return miss();
     }
     let inv = det.recip();
-    let t = ((e[0] * p[0][2] + e[1] * p[1][2]) + e[2] * p[2][2]) * Vec4::splat(r.s.z) * inv;
+    let b = [e[0] * inv, e[1] * inv, e[2] * inv];
+    let t = ((b[0] * p[0][2] + b[1] * p[1][2]) + b[2] * p[2][2]) * Vec4::splat(r.s.z);
     let mask = (candidates & t.cmpge(Vec4::splat(t_min)) & t.cmplt(Vec4::splat(t_max))).bitmask();
     if mask == 0 {
         return miss();
@@ -267,8 +268,8 @@ pub fn intersect_watertight_lanes(
     LaneHits {
         mask,
         t,
-        b1: (e[1] * inv).clamp(Vec4::ZERO, Vec4::ONE),
-        b2: (e[2] * inv).clamp(Vec4::ZERO, Vec4::ONE),
+        b1: b[1].clamp(Vec4::ZERO, Vec4::ONE),
+        b2: b[2].clamp(Vec4::ZERO, Vec4::ONE),
     }
 }
 
@@ -278,9 +279,15 @@ pub fn intersect_watertight_lanes(
 /// the largest direction component is z, shear; see [`RayShear`]), and the
 /// 2D edge functions `e_i = a_x·b_y − a_y·b_x` of the projected triangle
 /// decide the hit: all three of one sign (zero counts as either), and
-/// `det = e0 + e1 + e2 ≠ 0`. Then, with the z coordinates scaled by `1/d_z`,
+/// `det = e0 + e1 + e2 ≠ 0`. Then, with `b_i = e_i/det` and the z
+/// coordinates scaled by `1/d_z`,
 ///
-/// `t = (e0·z0 + e1·z1 + e2·z2) / det`, `b1 = e1/det`, `b2 = e2/det`.
+/// `t = b0·z0 + b1·z1 + b2·z2`,
+///
+/// the barycentrics first: the paper's `(e0·z0 + e1·z1 + e2·z2)/det` grows
+/// as the cube of the mesh's size and overflows f32 past about 10¹²
+/// (meshes that large rendered empty), where the edge functions and `det`,
+/// squares, hold to about 10¹⁹.
 ///
 /// Every vertex is transformed on its own, the same way whichever triangle
 /// it belongs to, and an edge function is antisymmetric in its two
@@ -288,9 +295,10 @@ pub fn intersect_watertight_lanes(
 /// fused), so the two triangles sharing an edge see exactly opposite values
 /// for it: a ray that leaves one through the edge enters the other, and
 /// one exactly on it (a zero) hits both. No ray slips through a closed mesh
-/// at any scale, with no allowance to tune. Edge functions that round to
-/// zero are recomputed in f64 (exact products), so that the zero is only
-/// taken where it is nearly exact. Returns also whether the hit lies exactly
+/// at any scale the edge functions hold (sizes and distances from about
+/// 10⁻¹⁶ to 10¹⁸, as the mesh tests check), with no allowance to tune.
+/// Edge functions that round to zero are recomputed in f64 (exact
+/// products), so that the zero is only taken where it is nearly exact. Returns also whether the hit lies exactly
 /// on an edge (an edge function is zero), which [`super::Mesh::contains`]
 /// uses to recast its ray.
 #[inline]
@@ -326,7 +334,8 @@ pub fn intersect_watertight(
         return None;
     }
     let inv = 1.0 / det;
-    let t = ((e0 * p0.z + e1 * p1.z) + e2 * p2.z) * r.s.z * inv;
+    let (b0, b1, b2) = (e0 * inv, e1 * inv, e2 * inv);
+    let t = ((b0 * p0.z + b1 * p1.z) + b2 * p2.z) * r.s.z;
     if !(t >= t_min && t < t_max) {
         return None;
     }
@@ -334,8 +343,8 @@ pub fn intersect_watertight(
     Some((
         TriangleHit {
             t,
-            b1: (e1 * inv).clamp(0.0, 1.0),
-            b2: (e2 * inv).clamp(0.0, 1.0),
+            b1: b1.clamp(0.0, 1.0),
+            b2: b2.clamp(0.0, 1.0),
         },
         on_edge,
     ))

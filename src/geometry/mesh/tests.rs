@@ -163,3 +163,69 @@ fn packets_are_traced_together_while_their_rays_are_close() {
     half[0].o.x = -10.0;
     assert!(!m.packet_pays(&half, true));
 }
+
+/// A closed mesh scaled by a power of two gives the same hits as the mesh
+/// itself, `t` scaled by the same power, from 2⁻⁵⁵ (about 3·10⁻¹⁷) to 2⁶⁰
+/// (about 10¹⁸), with leaf blocks and with per-triangle lanes: the
+/// watertight test takes `t` from the barycentrics. Taken as `(e0·z0 +
+/// e1·z1 + e2·z2)/det`, whose numerator grows as the cube of the size, it
+/// overflowed past about 10¹² and underflowed below about 10⁻¹³, and such
+/// meshes rendered empty. Floating point scales exactly while no value
+/// falls below the normal range: bit for bit from 2⁻⁴⁵ up; below, some
+/// products in the edge functions are subnormal, and the same triangles
+/// are hit at nearly the same `t`.
+#[test]
+fn hits_scale_with_the_mesh_from_two_to_the_minus_55_to_the_60() {
+    for (nu, nv) in [(96, 48), (16, 8)] {
+        let (v, f) = torus(2.0, 0.6, nu, nv);
+        let unit = Mesh::new(v.clone(), f.clone(), vec![], vec![]).unwrap();
+        for e in [-55, -50, -45, 45, 60] {
+            let s = 2f32.powi(e);
+            let scaled: Vec<glam::Vec3> = v.iter().map(|p| *p * s).collect();
+            let big = Mesh::new(scaled, f.clone(), vec![], vec![]).unwrap();
+            let mut rng = Pcg32::new(7, e as u64 & 0xff);
+            let mut u = |r: f32| (rng.next_f32() * 2.0 - 1.0) * r;
+            let mut c = TraceCounters::default();
+            let mut hits = 0;
+            for _ in 0..3_000 {
+                let o = Vec3::new(u(4.0), u(2.0), u(4.0));
+                let target = Vec3::new(u(2.6), u(0.6), u(2.6));
+                let ray = Ray::new(o, target - o);
+                let ray_s = Ray::new(o * s, ray.d);
+                let a = unit.intersect_object(&ray, &mut c);
+                let b = big.intersect_object(&ray_s, &mut c);
+                // The triangle hit, by its vertices (the trees may number
+                // the triangles differently: past 2⁵⁰ or so the builder's
+                // surface areas overflow f32 and its splits change).
+                let corners = |m: &Mesh, h: &ShapeHit, k: f32| {
+                    m.triangles[h.prim as usize].map(|i| (m.positions[i as usize] * k).to_array())
+                };
+                if e >= -45 {
+                    let key = |m: &Mesh, h: ShapeHit, k: f32| {
+                        (corners(m, &h, k), (h.t * k).to_bits(), h.u, h.v)
+                    };
+                    assert_eq!(
+                        a.map(|h| key(&unit, h, s)),
+                        b.map(|h| key(&big, h, 1.0)),
+                        "2^{e}: {ray:?}"
+                    );
+                } else {
+                    let key = |m: &Mesh, h: ShapeHit, k: f32| corners(m, &h, k);
+                    assert_eq!(
+                        a.map(|h| key(&unit, h, s)),
+                        b.map(|h| key(&big, h, 1.0)),
+                        "2^{e}: {ray:?}"
+                    );
+                    if let (Some(a), Some(b)) = (a, b) {
+                        let t = a.t * s;
+                        assert!((b.t - t).abs() <= 1e-5 * t, "2^{e}: {} against {t}", b.t);
+                    }
+                }
+                let blocked = big.occludes_object(&ray_s, &mut c);
+                assert_eq!(blocked, b.is_some(), "2^{e}: {ray:?}");
+                hits += u32::from(b.is_some());
+            }
+            assert!(hits > 500, "2^{e}, {nu}×{nv}: {hits} hits");
+        }
+    }
+}
