@@ -287,7 +287,7 @@ pub fn intersect_watertight_lanes(
 /// the barycentrics first: the paper's `(e0·z0 + e1·z1 + e2·z2)/det` grows
 /// as the cube of the mesh's size and overflows f32 past about 10¹²
 /// (meshes that large rendered empty), where the edge functions and `det`,
-/// squares, hold to about 10¹⁹.
+/// squares of lengths, hold to about 10¹⁸.
 ///
 /// Every vertex is transformed on its own, the same way whichever triangle
 /// it belongs to, and an edge function is antisymmetric in its two
@@ -298,9 +298,9 @@ pub fn intersect_watertight_lanes(
 /// at any scale the edge functions hold (sizes and distances from about
 /// 10⁻¹⁶ to 10¹⁸, as the mesh tests check), with no allowance to tune.
 /// Edge functions that round to zero are recomputed in f64 (exact
-/// products), so that the zero is only taken where it is nearly exact. Returns also whether the hit lies exactly
-/// on an edge (an edge function is zero), which [`super::Mesh::contains`]
-/// uses to recast its ray.
+/// products), so that the zero is only taken where it is nearly exact.
+/// Returns also whether the hit lies exactly on an edge (an edge function
+/// is zero), which [`super::Mesh::contains`] uses to recast its ray.
 #[inline]
 pub fn intersect_watertight(
     o: Vec3,
