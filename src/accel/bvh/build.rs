@@ -5,7 +5,7 @@ use super::{
     BINS, Bvh, BvhNode, MAX_LEAF, MAX_SAH_DEPTH, PARALLEL_BINNING, PARALLEL_THRESHOLD, PrimRef,
     SWEEP_BELOW, TRAVERSAL_COST,
 };
-use crate::math::{Aabb, Vec3};
+use crate::math::Aabb;
 use rayon::prelude::*;
 
 #[derive(Clone, Copy)]
@@ -32,9 +32,10 @@ impl Bin {
     }
 }
 
-fn area(b: &Aabb) -> f32 {
-    let e = (b.max - b.min).max(Vec3::ZERO);
-    2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+/// The SAH's area of a box (half its surface: only ratios of areas
+/// count), in f64 as [`Aabb::half_area`] says why.
+fn area(b: &Aabb) -> f64 {
+    b.half_area()
 }
 
 impl Bvh {
@@ -175,7 +176,7 @@ fn node(task: Task, out: &mut [BvhNode], base: usize, par: usize) -> usize {
     }
     // Binned along the longest axis of the centroids' box only (Wald 2007);
     // the bins merged on each side give the children's boxes.
-    let mut best: Option<(f32, usize, Bin, Bin)> = None;
+    let mut best: Option<(f64, usize, Bin, Bin)> = None;
     if cb.max[axis] > cb.min[axis] {
         let bins = bin(refs, &cb, axis);
         let mut right = [EMPTY_BIN; BINS];
@@ -191,17 +192,17 @@ fn node(task: Task, out: &mut [BvhNode], base: usize, par: usize) -> usize {
             if left.count == 0 || r.count == 0 {
                 continue;
             }
-            let cost = area(&left.bounds) * left.count as f32 + area(&r.bounds) * r.count as f32;
+            let cost = area(&left.bounds) * left.count as f64 + area(&r.bounds) * r.count as f64;
             if best.as_ref().is_none_or(|b| cost < b.0) {
                 best = Some((cost, k, left, *r));
             }
         }
     }
-    let split_cost = best.as_ref().map_or(f32::INFINITY, |b| {
-        TRAVERSAL_COST + b.0 / area(&b.2.bounds.union(&b.3.bounds)).max(f32::MIN_POSITIVE)
+    let split_cost = best.as_ref().map_or(f64::INFINITY, |b| {
+        TRAVERSAL_COST + b.0 / area(&b.2.bounds.union(&b.3.bounds)).max(f64::MIN_POSITIVE)
     });
     match best {
-        Some((_, k, lb, rb)) if split_cost < n as f32 || n > MAX_LEAF => {
+        Some((_, k, lb, rb)) if split_cost < n as f64 || n > MAX_LEAF => {
             let scale = BINS as f32 / (cb.max[axis] - cb.min[axis]);
             let lo = cb.min[axis];
             let mid = partition(refs, |r| {
@@ -266,20 +267,20 @@ fn small(
         );
     }
     let mut left = (Aabb::EMPTY, Aabb::EMPTY);
-    let mut best: Option<(f32, usize, (Aabb, Aabb))> = None;
+    let mut best: Option<(f64, usize, (Aabb, Aabb))> = None;
     for i in 1..n {
         left = (
             left.0.union(&refs[i - 1].bounds()),
             left.1.union(&point(&refs[i - 1])),
         );
-        let cost = area(&left.0) * i as f32 + area(&suffix[i].0) * (n - i) as f32;
+        let cost = area(&left.0) * i as f64 + area(&suffix[i].0) * (n - i) as f64;
         if best.as_ref().is_none_or(|x| cost < x.0) {
             best = Some((cost, i, left));
         }
     }
     match best {
         Some((cost, mid, left))
-            if TRAVERSAL_COST + cost / area(&b).max(f32::MIN_POSITIVE) < n as f32
+            if TRAVERSAL_COST + cost / area(&b).max(f64::MIN_POSITIVE) < n as f64
                 || n > MAX_LEAF =>
         {
             children(

@@ -19,7 +19,7 @@ const BINS: usize = 16;
 /// Largest leaf.
 pub(crate) const MAX_LEAF: usize = 8;
 /// Cost of a traversal step relative to one primitive test.
-const TRAVERSAL_COST: f32 = 1.0;
+const TRAVERSAL_COST: f64 = 1.0;
 /// Depth below which splits are chosen by SAH (see `node`).
 const MAX_SAH_DEPTH: usize = 40;
 /// A bound on the depth of any tree, MAX_SAH_DEPTH plus log2 of the largest

@@ -3,7 +3,6 @@
 
 use super::{Bvh8, Bvh8Node, WIDTH};
 use crate::accel::bvh::Bvh;
-use crate::math::Vec3;
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
 
@@ -116,9 +115,7 @@ fn collapse(bvh: &Bvh, range: (usize, usize)) -> ([Child; WIDTH], usize) {
         let area = if leaf.is_some() {
             -1.0
         } else {
-            let n = &bvh.nodes[i];
-            let e = (n.bounds().max - n.bounds().min).max(Vec3::ZERO);
-            e.x * e.y + e.y * e.z + e.z * e.x
+            bvh.nodes[i].bounds().half_area()
         };
         (Child { node: i, end, leaf }, area)
     };
@@ -127,7 +124,7 @@ fn collapse(bvh: &Bvh, range: (usize, usize)) -> ([Child; WIDTH], usize) {
         end: 0,
         leaf: None,
     }; WIDTH];
-    let mut areas = [0f32; WIDTH];
+    let mut areas = [0f64; WIDTH];
     (children[0], areas[0]) = child(b + 1, right);
     (children[1], areas[1]) = child(right, end);
     let mut len = 2;
@@ -314,7 +311,7 @@ fn collapse_into(
 mod tests {
     use super::*;
     use crate::geometry::testgen::bumpy_icosphere;
-    use crate::math::Aabb;
+    use crate::math::{Aabb, Vec3};
 
     /// The bottom of the tree is made of full nodes of leaves, not of
     /// nodes of two leaves each (which the collapse made of bottom

@@ -164,6 +164,32 @@ fn packets_are_traced_together_while_their_rays_are_close() {
     assert!(!m.packet_pays(&half, true));
 }
 
+/// The builder's surface areas are f64 ([`crate::math::Aabb::half_area`]),
+/// so a mesh scaled by a power of two gets the same tree, node for node,
+/// with its boxes scaled, from 2⁻¹⁰⁰ to 2¹⁰⁰. With f32 areas the trees
+/// differed past about 2⁴⁵ (the products overflowed, and every split then
+/// cost the same) and below about 2⁻⁴⁵ (they vanished).
+#[test]
+fn the_tree_is_the_same_at_every_scale_from_two_to_the_minus_100_to_the_100() {
+    for (nu, nv) in [(96, 48), (16, 8)] {
+        let (v, f) = torus(2.0, 0.6, nu, nv);
+        let unit = Mesh::new(v.clone(), f.clone(), vec![], vec![]).unwrap();
+        for e in [-100, -60, -45, 45, 60, 100] {
+            let s = 2f32.powi(e);
+            let scaled: Vec<glam::Vec3> = v.iter().map(|p| *p * s).collect();
+            let m = Mesh::new(scaled, f.clone(), vec![], vec![]).unwrap();
+            assert_eq!(m.triangles, unit.triangles, "2^{e}, {nu}×{nv}");
+            assert_eq!(m.bvh.nodes.len(), unit.bvh.nodes.len(), "2^{e}, {nu}×{nv}");
+            for (a, b) in unit.bvh.nodes.iter().zip(&m.bvh.nodes) {
+                assert_eq!((a.child, a.order), (b.child, b.order), "2^{e}, {nu}×{nv}");
+                for (ra, rb) in a.planes.iter().zip(&b.planes) {
+                    assert_eq!(ra.0.map(|x| x * s), rb.0, "2^{e}, {nu}×{nv}");
+                }
+            }
+        }
+    }
+}
+
 /// A closed mesh scaled by a power of two gives the same hits as the mesh
 /// itself, `t` scaled by the same power, from 2⁻⁵⁵ (about 3·10⁻¹⁷) to 2⁶⁰
 /// (about 10¹⁸), with leaf blocks and with per-triangle lanes: the
@@ -194,9 +220,7 @@ fn hits_scale_with_the_mesh_from_two_to_the_minus_55_to_the_60() {
                 let ray_s = Ray::new(o * s, ray.d);
                 let a = unit.intersect_object(&ray, &mut c);
                 let b = big.intersect_object(&ray_s, &mut c);
-                // The triangle hit, by its vertices (the trees may number
-                // the triangles differently: past 2⁴⁵ the builder's surface
-                // areas can overflow f32 and its splits change).
+                // The triangle hit, by its vertices.
                 let corners = |m: &Mesh, h: &ShapeHit, k: f32| {
                     m.triangles[h.prim as usize].map(|i| (m.positions[i as usize] * k).to_array())
                 };
