@@ -539,3 +539,47 @@ fn root_searches_on_loose_formulas_are_bounded() {
     // No surface there: every ray sees the background.
     assert!(image.pixels.iter().all(|c| *c == file.scene.background));
 }
+
+/// A mesh too large or too small for the f32 triangle test (see
+/// `glint::geometry::CHECKED_SCALES`) loads with a warning that names the
+/// file and the mesh; one at either end of the range loads without.
+#[test]
+fn meshes_outside_the_checked_scales_are_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let faces = "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    // A tetrahedron of size `k` with its corner at `at`.
+    let tetra = |at: f32, k: f32| {
+        let v = |x: f32, y: f32, z: f32| format!("v {} {} {}\n", at + x, y, z);
+        format!(
+            "{}{}{}{}{faces}",
+            v(0.0, 0.0, 0.0),
+            v(k, 0.0, 0.0),
+            v(0.0, k, 0.0),
+            v(0.0, 0.0, k)
+        )
+    };
+    for (at, k, warning) in [
+        (0.0, 1.0, None),
+        (0.0, 1e18, None),
+        (0.0, 2e-16, None),
+        (0.0, 1e20, Some("its coordinates reach 1.0e20")),
+        (1e19, 1e19, Some("its coordinates reach 2.0e19")),
+        (0.0, 1e-18, Some("it is only 1.0e-18 across")),
+    ] {
+        let path = write(dir.path(), "t.obj", tetra(at, k));
+        let model = load_mesh_file(&path).unwrap();
+        match warning {
+            None => assert!(model.warnings.is_empty(), "{k}: {:?}", model.warnings),
+            Some(w) => {
+                assert_eq!(model.warnings.len(), 1, "{k}: {:?}", model.warnings);
+                let text = &model.warnings[0];
+                assert!(
+                    text.contains("t.obj: mesh `")
+                        && text.contains(w)
+                        && text.contains("from 1e-16 to 1e18"),
+                    "{text}"
+                );
+            }
+        }
+    }
+}

@@ -75,6 +75,14 @@ const LANE_SET: [Vec4; 1 << LANES] = {
 /// (160 bytes per triangle, at most 655 KB a mesh) rather than leaf blocks.
 pub const SMALL_MESH_TRIANGLES: usize = 1 << 12;
 
+/// The sizes and distances, in a mesh's own units, at which its triangles
+/// are checked to render ([`intersect_watertight`]: its edge functions,
+/// products of two lengths, must stay within f32's normal range; the mesh
+/// tests render a closed mesh across this whole range). Outside it, some
+/// or all of a mesh's triangles may be missed, so loading warns
+/// ([`Mesh::scale_problem`]).
+pub const CHECKED_SCALES: std::ops::RangeInclusive<f32> = 1e-16..=1e18;
+
 /// Why a mesh could not be built from its arrays.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum MeshDataError {
@@ -255,6 +263,26 @@ impl Mesh {
 
     pub fn bounds(&self) -> Aabb {
         self.bvh.bounds.unwrap_or(Aabb::EMPTY)
+    }
+
+    /// What is wrong with the mesh's scale, where it lies outside
+    /// [`CHECKED_SCALES`]: coordinates beyond the top of the range, or a
+    /// largest extent below its bottom (a whole mesh that small).
+    pub fn scale_problem(&self) -> Option<String> {
+        let b = self.bvh.bounds?;
+        let reach = b.min.abs().max(b.max.abs()).max_element();
+        let extent = (b.max - b.min).max_element();
+        let (low, high) = (*CHECKED_SCALES.start(), *CHECKED_SCALES.end());
+        let what = if reach > high {
+            format!("its coordinates reach {reach:.1e}")
+        } else if extent < low {
+            format!("it is only {extent:.1e} across")
+        } else {
+            return None;
+        };
+        Some(format!(
+            "{what}; triangles are tested in f32 and are known to render at sizes and distances from {low:e} to {high:e}, so some may be missed: scale the mesh into that range"
+        ))
     }
 
     /// How a leaf reaches its triangles: `None` for small meshes (lanes per

@@ -17,7 +17,7 @@ mod triangle;
 
 pub use cuboid::Cuboid;
 pub use implicit::Implicit;
-pub use mesh::{Mesh, MeshDataError, MeshInstance};
+pub use mesh::{CHECKED_SCALES, Mesh, MeshDataError, MeshInstance};
 pub use plane::Plane;
 pub use sphere::Sphere;
 pub use triangle::{

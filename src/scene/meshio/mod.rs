@@ -196,5 +196,25 @@ pub fn load_mesh_file(path: &Path) -> Result<Model, MeshError> {
     if model.triangles() == 0 {
         return Err(MeshError::new(path, "file", "holds no triangles"));
     }
+    // Meshes at scales where triangles may be missed: the first few named,
+    // the rest counted (a glTF file may hold thousands of parts).
+    const NAMED: usize = 3;
+    let mut model = model;
+    let problems: Vec<String> = model
+        .parts
+        .iter()
+        .filter_map(|p| {
+            let problem = p.mesh.scale_problem()?;
+            Some(format!("{}: mesh `{}`: {problem}", path.display(), p.name))
+        })
+        .collect();
+    let more = problems.len().saturating_sub(NAMED);
+    model.warnings.extend(problems.into_iter().take(NAMED));
+    if more > 0 {
+        model.warnings.push(format!(
+            "{}: {more} more meshes are outside the checked scales",
+            path.display()
+        ));
+    }
     Ok(model)
 }
