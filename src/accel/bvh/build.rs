@@ -32,12 +32,6 @@ impl Bin {
     }
 }
 
-/// The SAH's area of a box (half its surface: only ratios of areas
-/// count), in f64 as [`Aabb::half_area`] says why.
-fn area(b: &Aabb) -> f64 {
-    b.half_area()
-}
-
 impl Bvh {
     /// Builds a BVH over primitives with the given boxes (centroids are the
     /// boxes' centres). Primitives with empty or non-finite boxes are left out.
@@ -192,14 +186,21 @@ fn node(task: Task, out: &mut [BvhNode], base: usize, par: usize) -> usize {
             if left.count == 0 || r.count == 0 {
                 continue;
             }
-            let cost = area(&left.bounds) * left.count as f64 + area(&r.bounds) * r.count as f64;
+            let cost =
+                left.bounds.half_area() * left.count as f64 + r.bounds.half_area() * r.count as f64;
             if best.as_ref().is_none_or(|b| cost < b.0) {
                 best = Some((cost, k, left, *r));
             }
         }
     }
     let split_cost = best.as_ref().map_or(f64::INFINITY, |b| {
-        TRAVERSAL_COST + b.0 / area(&b.2.bounds.union(&b.3.bounds)).max(f64::MIN_POSITIVE)
+        TRAVERSAL_COST
+            + b.0
+                / b.2
+                    .bounds
+                    .union(&b.3.bounds)
+                    .half_area()
+                    .max(f64::MIN_POSITIVE)
     });
     match best {
         Some((_, k, lb, rb)) if split_cost < n as f64 || n > MAX_LEAF => {
@@ -273,14 +274,14 @@ fn small(
             left.0.union(&refs[i - 1].bounds()),
             left.1.union(&point(&refs[i - 1])),
         );
-        let cost = area(&left.0) * i as f64 + area(&suffix[i].0) * (n - i) as f64;
+        let cost = left.0.half_area() * i as f64 + suffix[i].0.half_area() * (n - i) as f64;
         if best.as_ref().is_none_or(|x| cost < x.0) {
             best = Some((cost, i, left));
         }
     }
     match best {
         Some((cost, mid, left))
-            if TRAVERSAL_COST + cost / area(&b).max(f64::MIN_POSITIVE) < n as f64
+            if TRAVERSAL_COST + cost / b.half_area().max(f64::MIN_POSITIVE) < n as f64
                 || n > MAX_LEAF =>
         {
             children(

@@ -162,7 +162,7 @@ pub fn load_mesh_file(path: &Path) -> Result<Model, MeshError> {
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
     let start = Instant::now();
-    let model = match ext.as_str() {
+    let mut model = match ext.as_str() {
         "ply" => {
             let raw = ply::read(path)?;
             let seconds_load = start.elapsed().as_secs_f64();
@@ -199,7 +199,6 @@ pub fn load_mesh_file(path: &Path) -> Result<Model, MeshError> {
     // Meshes at scales where triangles may be missed: the first few named,
     // the rest counted (a glTF file may hold thousands of parts).
     const NAMED: usize = 3;
-    let mut model = model;
     let problems: Vec<String> = model
         .parts
         .iter()
