@@ -40,6 +40,17 @@ trait NodeVisit {
     /// distances, last first. This skips the permute into the octant's order
     /// and the distances, which only closest hits use (tinybvh's
     /// `BVH8_CPU::IsOccluded` does not order either).
+    ///
+    /// The fused test (which needs `t_min ≥ 0`) is made here for `[0,
+    /// t_max]` instead of `[t_min, t_max]`: `max(near, 0) ≤ max(near,
+    /// t_min)`, so every child the ray's interval takes is taken, and the
+    /// only others are boxes the ray leaves before `t_min`, whose
+    /// triangles' hits the leaf test refuses (it checks `t ≥ t_min`, and
+    /// decides alone, as a test of every triangle would, where its own
+    /// rounding puts a hit past `t_min` after all). A few more nodes may
+    /// be visited; the ray's `t_min` is not needed in a register (on
+    /// AVX2, one fewer value read from the stack per visit). The plain
+    /// test keeps `t_min`, which may be negative there.
     fn visit_any(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> (Option<u32>, u32);
 
     /// What the visits take as `t_max`, and what entry distances are
@@ -97,7 +108,7 @@ impl PortableLanes {
     /// `min` of the far planes' and `t_max` (already widened by
     /// [`NodeVisit::bound`] for the fused test).
     #[inline(always)]
-    fn test(&self, n: &Bvh8Node, t_max: f32, t_enter: &mut [f32; WIDTH]) -> u32 {
+    fn test(&self, n: &Bvh8Node, t_min: Vec4, t_max: f32, t_enter: &mut [f32; WIDTH]) -> u32 {
         let t_max = Vec4::splat(t_max);
         let mut mask = 0;
         for half in 0..2 {
@@ -115,7 +126,7 @@ impl PortableLanes {
             let far = |a: usize| t(a, self.far[a], &self.far_c);
             let (nx, ny, nz) = (near(0), near(1), near(2));
             let (fx, fy, fz) = (far(0), far(1), far(2));
-            let enter = nx.max(ny).max(nz.max(self.t_min));
+            let enter = nx.max(ny).max(nz.max(t_min));
             let exit = fx.min(fy).min(fz.min(t_max));
             enter.write_to_slice(&mut t_enter[4 * half..4 * half + 4]);
             mask |= enter.cmple(exit).bitmask() << (4 * half);
@@ -133,7 +144,7 @@ impl NodeVisit for PortableLanes {
     #[inline(always)]
     fn visit(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> Option<u32> {
         let mut t = [0f32; WIDTH];
-        let mask = self.test(n, t_max, &mut t);
+        let mask = self.test(n, self.t_min, t_max, &mut t);
         let mut next = None;
         for j in (0..WIDTH).rev() {
             let k = (n.order[j] >> self.shift & 7) as usize;
@@ -149,7 +160,9 @@ impl NodeVisit for PortableLanes {
     #[inline(always)]
     fn visit_any(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> (Option<u32>, u32) {
         let mut t = [0f32; WIDTH];
-        let mask = self.test(n, t_max, &mut t);
+        // From 0 for the fused test (see `NodeVisit::visit_any`).
+        let t_min = if self.fused { Vec4::ZERO } else { self.t_min };
+        let mask = self.test(n, t_min, t_max, &mut t);
         // EMPTY has the high bit too, but is never hit.
         let leaf = (0..WIDTH).fold(0, |m, k| m | (n.child[k] >> 31) << k);
         let mut next = None;

@@ -115,6 +115,13 @@ impl<const OCT: u32> Avx2Lanes<OCT> {
     /// both).
     #[inline(always)]
     fn test(&self, n: &Bvh8Node, t_max: f32) -> (__m256, __m256) {
+        self.test_from(n, self.t_min, t_max)
+    }
+
+    /// [`Avx2Lanes::test`] for the interval from `t_min` instead of the
+    /// ray's.
+    #[inline(always)]
+    fn test_from(&self, n: &Bvh8Node, t_min: __m256, t_max: f32) -> (__m256, __m256) {
         // SAFETY: an `Avx2Lanes` exists only where the CPU has AVX2 and
         // FMA.
         unsafe {
@@ -122,7 +129,7 @@ impl<const OCT: u32> Avx2Lanes<OCT> {
                 n,
                 (Self::NEAR, Self::FAR),
                 (&self.inv, &self.near_c, &self.far_c),
-                self.t_min,
+                t_min,
                 t_max,
             )
         }
@@ -190,9 +197,11 @@ impl<const OCT: u32> NodeVisit for Avx2Lanes<OCT> {
 
     #[inline(always)]
     fn visit_any(&self, n: &Bvh8Node, t_max: f32, stack: &mut Stack) -> (Option<u32>, u32) {
-        let (_, hit) = self.test(n, t_max);
         // SAFETY (all): as in `push`.
         unsafe {
+            // From 0, as the portable visit (see `NodeVisit::visit_any`):
+            // a zeroing idiom, where `t_min` would be read from memory.
+            let (_, hit) = self.test_from(n, _mm256_setzero_ps(), t_max);
             // The sign bit marks leaves (and EMPTY, never hit).
             let child = _mm256_loadu_si256(n.child.as_ptr().cast());
             let is_leaf = _mm256_castsi256_ps(child);

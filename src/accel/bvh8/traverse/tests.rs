@@ -38,15 +38,22 @@ fn traversal_matches_brute_force_and_tree_is_valid() {
         "collapse fills nodes"
     );
     let mut rng = Pcg32::new(9, 2);
-    for _ in 0..2000 {
+    for i in 0..3000 {
         let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - Vec3::splat(2.0);
         let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - Vec3::splat(0.5);
-        let ray = Ray::new(o, d);
+        let mut ray = Ray::new(o, d);
+        // A third of the rays start further on, as shadow rays do: boxes
+        // met only before `t_min` are not hits (the any-hit visits take
+        // them from 0, and the leaf test must refuse them).
+        if i % 3 == 1 {
+            ray.t_min = rng.next_f32() * 8.0;
+        }
         let inv = ray.inv_d();
         let t_of = |p: u32| {
             leaf_boxes[p as usize]
                 .slab(ray.o, inv)
-                .map(|h| h.t_enter.max(0.0))
+                .filter(|h| h.t_exit >= ray.t_min)
+                .map(|h| h.t_enter.max(ray.t_min))
         };
         let brute = (0..leaf_boxes.len() as u32)
             .filter_map(|p| t_of(p).map(|t| (p, t)))
@@ -103,7 +110,12 @@ fn traversal_matches_brute_force_and_tree_is_valid() {
         assert_eq!(got.map(|g| g.1), brute.map(|b| b.1));
         assert!(made <= 1 && (leaves == 0 || made == 1), "{made} {leaves}");
         let mut enter = [0.0; WIDTH];
-        let root_hit = portable.test(&wide.nodes[0], portable.bound(ray.t_max), &mut enter);
+        let root_hit = portable.test(
+            &wide.nodes[0],
+            portable.t_min,
+            portable.bound(ray.t_max),
+            &mut enter,
+        );
         if root_hit == 0 {
             assert_eq!(made, 0);
         }
@@ -124,6 +136,14 @@ fn traversal_matches_brute_force_and_tree_is_valid() {
         );
         assert_eq!(found, brute.is_some());
         assert!(made <= 1 && (leaves == 0 || made == 1), "{made} {leaves}");
+        // Any hits test the root from 0 where the test is fused (see
+        // `NodeVisit::visit_any`).
+        let t_min = if portable.fused {
+            Vec4::ZERO
+        } else {
+            portable.t_min
+        };
+        let root_hit = portable.test(&wide.nodes[0], t_min, portable.bound(ray.t_max), &mut enter);
         if root_hit == 0 {
             assert_eq!(made, 0);
         }
@@ -190,6 +210,9 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
     // Children tested by plain and by fused rays; those only the fused
     // test takes.
     let (mut tested, mut extra) = ([0usize; 2], 0);
+    // Children the any-hit visit takes from 0 that the ray's own interval
+    // does not (rays with t_min > 0).
+    let mut extra_any = 0;
     for i in 0..20_000 {
         let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - Vec3::splat(2.0);
         let mut d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - Vec3::splat(0.5);
@@ -205,13 +228,27 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
         if i % 5 == 1 {
             ray.t_min = -f32::MIN_POSITIVE;
         }
+        // Some start further on (fused, as shadow rays).
+        if i % 5 == 2 {
+            ray.t_min = rng.next_f32() * ray.t_max;
+        }
         let setup = RaySetup::new(&ray, &wide.root());
         let portable = PortableLanes::new(&setup);
+        // The any-hit visit tests fused rays from 0 (see
+        // `NodeVisit::visit_any`): the children the closest-hit visit
+        // takes for the same ray from 0.
+        let from_zero = PortableLanes::new(&RaySetup::new(
+            &Ray {
+                t_min: if setup.fused { 0.0 } else { ray.t_min },
+                ..ray
+            },
+            &wide.root(),
+        ));
         // The visits take t_max widened as traversal gives it.
         let bound = portable.bound(ray.t_max);
         for node in wide.nodes.iter().step_by(17) {
             let mut t_p = [0f32; WIDTH];
-            let m_p = portable.test(node, bound, &mut t_p);
+            let m_p = portable.test(node, portable.t_min, bound, &mut t_p);
             let mut stack = Stack::new();
             let next_p = portable.visit(node, bound, &mut stack);
             let stack_p = drain(&mut stack);
@@ -234,8 +271,13 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
             // the others in lane order.
             let is_leaf = |c: u32| c & LEAF != 0;
             let lane = |c: u32| (0..WIDTH).position(|k| node.child[k] == c);
-            let mut all: Vec<u32> = next_p.into_iter().collect();
-            all.extend(stack_p.iter().map(|e| e.0));
+            let next_z = from_zero.visit(node, bound, &mut stack);
+            let mut all: Vec<u32> = next_z.into_iter().collect();
+            all.extend(drain(&mut stack).iter().map(|e| e.0));
+            // Every child the ray's own interval takes, and maybe more.
+            let own = next_p.iter().chain(stack_p.iter().map(|e| &e.0));
+            assert!(own.clone().all(|c| all.contains(c)));
+            extra_any += all.len() - own.count();
             all.sort_by_key(|&c| lane(c));
             let mut inner: Vec<u32> = next_l.into_iter().collect();
             inner.extend(stack_l.iter().map(|e| e.0));
@@ -296,6 +338,10 @@ fn avx2_and_portable_visits_agree_bit_for_bit() {
         extra * 10_000 < tested[1],
         "{extra} of {} widened in",
         tested[1]
+    );
+    assert!(
+        extra_any > 100,
+        "any-hit visits from 0 took {extra_any} more"
     );
     if has_avx2() {
         assert!(compared > 0);
@@ -454,8 +500,8 @@ fn fused_test_takes_every_child_the_plain_one_takes() {
                 let (plain, fused) = (PortableLanes::new(&plain), PortableLanes::new(&setup));
                 for node in &wide.nodes {
                     let (mut tp, mut tf) = ([0f32; WIDTH], [0f32; WIDTH]);
-                    let mp = plain.test(node, t_max, &mut tp);
-                    let mf = fused.test(node, fused.bound(t_max), &mut tf);
+                    let mp = plain.test(node, plain.t_min, t_max, &mut tp);
+                    let mf = fused.test(node, fused.t_min, fused.bound(t_max), &mut tf);
                     assert_eq!(mp & !mf, 0, "{ray:?}: plain {mp:08b}, fused {mf:08b}");
                     checked += mp.count_ones() as usize;
                     widened += (mf & !mp).count_ones() as usize;
@@ -464,8 +510,8 @@ fn fused_test_takes_every_child_the_plain_one_takes() {
                     for k in (0..WIDTH).filter(|&k| mp & (1 << k) != 0) {
                         let t = tp[k];
                         let (mut up, mut uf) = ([0f32; WIDTH], [0f32; WIDTH]);
-                        let mp = plain.test(node, t, &mut up);
-                        let mf = fused.test(node, fused.bound(t), &mut uf);
+                        let mp = plain.test(node, plain.t_min, t, &mut up);
+                        let mf = fused.test(node, fused.t_min, fused.bound(t), &mut uf);
                         assert_eq!(mp & !mf, 0, "{ray:?} to {t}");
                         assert!(mp & (1 << k) != 0, "{ray:?}: child {k} at its own entry");
                         assert!(uf[k] <= fused.bound(t), "{ray:?} pruned at {t}");
