@@ -582,4 +582,38 @@ fn meshes_outside_the_checked_scales_are_a_warning() {
             }
         }
     }
+    // A file of many meshes: six too large and one in range, in between.
+    // The first three too large are named, in the file's order, and the
+    // other three counted.
+    let mut obj = String::new();
+    for (i, name) in ["a", "b", "c", "ok", "d", "e", "f"].iter().enumerate() {
+        let k = if *name == "ok" { 1.0 } else { 1e20 };
+        let base = 4 * i;
+        obj += &format!("o {name}\n");
+        for (x, y, z) in [(0.0, 0.0, 0.0), (k, 0.0, 0.0), (0.0, k, 0.0), (0.0, 0.0, k)] {
+            obj += &format!("v {x} {y} {z}\n");
+        }
+        for f in [[1, 3, 2], [1, 2, 4], [1, 4, 3], [2, 3, 4]] {
+            let [a, b, c] = f.map(|v| v + base);
+            obj += &format!("f {a} {b} {c}\n");
+        }
+    }
+    let path = write(dir.path(), "many.obj", obj);
+    let model = load_mesh_file(&path).unwrap();
+    assert_eq!(model.parts.len(), 7);
+    let w = &model.warnings;
+    assert_eq!(w.len(), 4, "{w:?}");
+    for (text, name) in w.iter().zip(["a", "b", "c"]) {
+        assert!(
+            text.contains(&format!(
+                "many.obj: mesh `{name}`: its coordinates reach 1.0e20"
+            )),
+            "{text}"
+        );
+    }
+    assert!(
+        w[3].contains("many.obj: 3 more meshes are outside the checked scales"),
+        "{}",
+        w[3]
+    );
 }
