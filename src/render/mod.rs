@@ -28,7 +28,7 @@ pub use integrator::{
     Tracer, Whitted, transmittance,
 };
 pub use parts::{Film, FilmHeader, MergeError, SampleSum};
-pub use sampler::{Pcg32, PixelSampler, PixelSamples};
+pub use sampler::{OFFSET_LANES, Pcg32, PixelSampler, PixelSamples};
 pub use srgb::{srgb_encode, srgb8, srgb8_exact};
 pub use stats::{RayCounts, RenderStats, TileCounters};
 

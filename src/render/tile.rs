@@ -5,7 +5,7 @@
 //! into the film and their output variables.
 
 use super::integrator::{Counters, Integrator};
-use super::{AovPixel, Film, PixelSamples, SampleSum, TILE_SIZE, TileCounters, aov};
+use super::{AovPixel, Film, OFFSET_LANES, PixelSamples, SampleSum, TILE_SIZE, TileCounters, aov};
 use crate::math::{Color, Ray, Vec3};
 use crate::scene::Scene;
 use crate::settings::RenderSettings;
@@ -215,8 +215,14 @@ fn stream_tile<I: Integrator>(
             let (x, y) = (tile.x0 + dx as u32, tile.y0 + dy as u32);
             let mut pixel = PixelSamples::new(x, y);
             let first = (dy * w + dx) * samples.count as usize;
+            let mut offsets = [(0.0f32, 0.0f32); OFFSET_LANES];
             for (k, index) in (samples.start..samples.start + samples.count).enumerate() {
-                let (u, v) = pixel.offset(index);
+                let lane = k % OFFSET_LANES;
+                if lane == 0 {
+                    let n = (samples.count as usize - k).min(OFFSET_LANES);
+                    pixel.offsets(index, &mut offsets[..n]);
+                }
+                let (u, v) = offsets[lane];
                 points.push((x as f32 + u, y as f32 + v));
                 if blocks {
                     places.push(first + k);
@@ -346,6 +352,7 @@ fn render_tile<I: Integrator>(
     }
     // Made only here: a streamed tile needs none of them.
     let mut points = [(0.0f32, 0.0f32); RAYS];
+    let mut offsets = [(0.0f32, 0.0f32); RAYS];
     let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); RAYS];
     let mut row_samples = [PixelSamples::new(0, 0); TILE_SIZE as usize];
     let mut streamed = [Color::ZERO; RAYS];
@@ -385,8 +392,8 @@ fn render_tile<I: Integrator>(
                 } else {
                     if k == 0 {
                         let n = (samples.end() - index).min(RAYS as u64) as usize;
-                        for (j, p) in points[..n].iter_mut().enumerate() {
-                            let (u, v) = pixel_samples.offset(index as u32 + j as u32);
+                        pixel_samples.offsets(index as u32, &mut offsets[..n]);
+                        for (p, (u, v)) in points[..n].iter_mut().zip(&offsets[..n]) {
                             *p = (x as f32 + u, y as f32 + v);
                         }
                         scene
