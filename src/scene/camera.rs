@@ -64,34 +64,43 @@ impl Camera {
         let aspect = width as f32 / height as f32;
         let (w, h) = (width as f32, height as f32);
         let (f, r, u) = (self.forward, self.right, self.up);
-        for (points, out) in points
-            .chunks(CAMERA_BATCH)
-            .zip(out.chunks_mut(CAMERA_BATCH))
-        {
-            let mut x = [0.5f32; CAMERA_BATCH];
-            let mut y = [0.5f32; CAMERA_BATCH];
-            for (i, &(px, py)) in points.iter().enumerate() {
-                x[i] = px;
-                y[i] = py;
-            }
-            let mut d = [[0f32; CAMERA_BATCH]; 3];
-            for i in 0..CAMERA_BATCH {
-                let sx = (2.0 * x[i] / w - 1.0) * self.tan_half_fov * aspect;
-                let sy = (1.0 - 2.0 * y[i] / h) * self.tan_half_fov;
-                for k in 0..3 {
-                    d[k][i] = f[k] + r[k] * sx + u[k] * sy;
+        // Compiled for the widest vector unit the CPU has: the square
+        // roots and divisions of a batch in as few instructions as it
+        // allows (each correctly rounded, so the same bits on every CPU).
+        super::widest(
+            #[inline(always)]
+            || {
+                for (points, out) in points
+                    .chunks(CAMERA_BATCH)
+                    .zip(out.chunks_mut(CAMERA_BATCH))
+                {
+                    let mut x = [0.5f32; CAMERA_BATCH];
+                    let mut y = [0.5f32; CAMERA_BATCH];
+                    for (i, &(px, py)) in points.iter().enumerate() {
+                        x[i] = px;
+                        y[i] = py;
+                    }
+                    let mut d = [[0f32; CAMERA_BATCH]; 3];
+                    for i in 0..CAMERA_BATCH {
+                        let sx = (2.0 * x[i] / w - 1.0) * self.tan_half_fov * aspect;
+                        let sy = (1.0 - 2.0 * y[i] / h) * self.tan_half_fov;
+                        for k in 0..3 {
+                            d[k][i] = f[k] + r[k] * sx + u[k] * sy;
+                        }
+                    }
+                    for i in 0..CAMERA_BATCH {
+                        let len =
+                            (d[0][i] * d[0][i] + d[1][i] * d[1][i] + d[2][i] * d[2][i]).sqrt();
+                        for dk in &mut d {
+                            dk[i] /= len;
+                        }
+                    }
+                    for (i, ray) in out.iter_mut().enumerate() {
+                        *ray = Ray::new(self.position, Vec3::new(d[0][i], d[1][i], d[2][i]));
+                    }
                 }
-            }
-            for i in 0..CAMERA_BATCH {
-                let len = (d[0][i] * d[0][i] + d[1][i] * d[1][i] + d[2][i] * d[2][i]).sqrt();
-                for dk in &mut d {
-                    dk[i] /= len;
-                }
-            }
-            for (i, ray) in out.iter_mut().enumerate() {
-                *ray = Ray::new(self.position, Vec3::new(d[0][i], d[1][i], d[2][i]));
-            }
-        }
+            },
+        )
     }
 
     /// Where the point `p` appears on the film of a `width × height` image,
